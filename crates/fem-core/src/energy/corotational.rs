@@ -1,0 +1,73 @@
+//! Co-rotational: `psi = mu |F - R|^2 + lambda/2 tr(R^T F - I)^2` with `R` the rotation of the
+//! polar decomposition `F = R S` (paper Eq. 2; Kim & Eberle, *Dynamic Deformables*, sec. 3.4).
+//!
+//! `R` comes from the closed-form 2D polar decomposition in [`crate::polar`], always a proper
+//! rotation. Because `R` maximises `tr(R^T F)`, the terms with `dR` vanish from `P`:
+//! `P = 2 mu (F - R) + lambda (tr(R^T F) - 2) R`. In `dP/dF` they do not:
+//! `dP = 2 mu (dF - dR) + lambda tr(R^T dF) R + lambda (tr(R^T F) - 2) dR`, with
+//! `dR = R' dtheta` ([`crate::polar::Polar2::dtheta`]).
+//!
+//! **Inverted elements (`J <= 0`)**: finite. With a proper rotation, `S = R^T F` has a negative
+//! eigenvalue and the `|F - R|^2` term grows as the element inverts further, so the energy
+//! resists inversion (weakly: it stays bounded at `J = 0`). At a scaled reflection
+//! `F = [[a, b], [b, -a]]` the rotation is not unique and the identity is used.
+
+use super::Energy;
+use crate::material::Lame;
+use crate::math::{Mat2, Mat4, Real, linear_map_matrix};
+use crate::polar::Polar2;
+
+/// Co-rotational linear elasticity.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Corotational {
+    mu: Real,
+    lambda: Real,
+}
+
+impl Corotational {
+    /// With the given Lamé parameters.
+    pub fn new(lame: Lame) -> Self {
+        Corotational {
+            mu: lame.mu,
+            lambda: lame.lambda,
+        }
+    }
+}
+
+impl Energy for Corotational {
+    fn name(&self) -> &'static str {
+        "corotational"
+    }
+
+    #[inline]
+    fn psi(&self, f: &Mat2) -> Real {
+        self.psi_pk1(f).0
+    }
+
+    #[inline]
+    fn pk1(&self, f: &Mat2) -> Mat2 {
+        self.psi_pk1(f).1
+    }
+
+    #[inline]
+    fn psi_pk1(&self, f: &Mat2) -> (Real, Mat2) {
+        let r = Polar2::new(f).rotation();
+        let d = f - r;
+        let t = (r.transpose() * f).trace() - 2.0;
+        let psi = self.mu * d.norm_squared() + 0.5 * self.lambda * t * t;
+        (psi, d * (2.0 * self.mu) + r * (self.lambda * t))
+    }
+
+    fn dpk1(&self, f: &Mat2) -> Mat4 {
+        let polar = Polar2::new(f);
+        let r = polar.rotation();
+        let rp = polar.drotation();
+        let t = (r.transpose() * f).trace() - 2.0;
+        linear_map_matrix(|df| {
+            let dr = rp * polar.dtheta(df);
+            (df - dr) * (2.0 * self.mu)
+                + r * (self.lambda * (r.transpose() * df).trace())
+                + dr * (self.lambda * t)
+        })
+    }
+}

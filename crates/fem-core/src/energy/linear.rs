@@ -1,0 +1,62 @@
+//! Linear (small-strain) elasticity: `psi = mu |eps|^2 + lambda/2 tr(eps)^2` with
+//! `eps = sym(F) - I`; `P = 2 mu eps + lambda tr(eps) I`; `dP/dF` is constant.
+//!
+//! It is the reference every other energy must reduce to at `F = I` (the battery checks it),
+//! and the cheapest. It is **not rotation invariant**: a rigid rotation of the element
+//! produces stress, growing with the angle, so it is wrong for large rotations (a cantilever
+//! under gravity with E = 1000 Pa). **Inverted elements (`J <= 0`)**: finite, no special
+//! treatment; the energy does not know about orientation.
+
+use super::Energy;
+use crate::material::Lame;
+use crate::math::{Mat2, Mat4, Real, linear_map_matrix, sym};
+
+/// Linear elasticity.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Linear {
+    mu: Real,
+    lambda: Real,
+    tangent: Mat4,
+}
+
+impl Linear {
+    /// With the given Lamé parameters.
+    pub fn new(lame: Lame) -> Self {
+        let (mu, lambda) = (lame.mu, lame.lambda);
+        let tangent =
+            linear_map_matrix(|df| sym(df) * (2.0 * mu) + Mat2::identity() * (lambda * df.trace()));
+        Linear {
+            mu,
+            lambda,
+            tangent,
+        }
+    }
+}
+
+impl Energy for Linear {
+    fn name(&self) -> &'static str {
+        "linear"
+    }
+
+    #[inline]
+    fn psi(&self, f: &Mat2) -> Real {
+        let eps = sym(f) - Mat2::identity();
+        let tr = eps.trace();
+        self.mu * eps.norm_squared() + 0.5 * self.lambda * tr * tr
+    }
+
+    #[inline]
+    fn pk1(&self, f: &Mat2) -> Mat2 {
+        let eps = sym(f) - Mat2::identity();
+        eps * (2.0 * self.mu) + Mat2::identity() * (self.lambda * eps.trace())
+    }
+
+    fn dpk1(&self, _f: &Mat2) -> Mat4 {
+        self.tangent
+    }
+
+    fn dpk1_projected(&self, _f: &Mat2) -> Mat4 {
+        // The tangent is constant and PSD for mu > 0, lambda + mu > 0.
+        self.tangent
+    }
+}

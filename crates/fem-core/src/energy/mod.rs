@@ -1,0 +1,262 @@
+//! Hyperelastic energy densities `psi(F)` of a 2D body, one per file, behind one trait.
+//!
+//! An energy sees only the deformation gradient `F` (and its own constants); the element owns
+//! the kinematics and assembly does the chain rule. Each energy provides the strain energy
+//! density `psi` (J/m^2 per unit thickness), the first Piola-Kirchhoff stress `P = dpsi/dF`, its
+//! derivative `dP/dF` (a 4x4 matrix on `vec(F)`, see [`crate::math`]) and an SPD-projected
+//! `dP/dF` for Newton-type solvers.
+//!
+//! | name                 | type                 | inverted elements (`J <= 0`)               |
+//! |----------------------|----------------------|--------------------------------------------|
+//! | `stvk`               | [`Stvk`]             | finite; can invert and stay inverted       |
+//! | `corotational`       | [`Corotational`]     | finite; proper-rotation polar, resists     |
+//! | `neo-hookean`        | [`NeoHookean`]       | undefined: `psi = +inf`, `P` is NaN        |
+//! | `stable-neo-hookean` | [`StableNeoHookean`] | finite and smooth; pushes back             |
+//! | `linear`             | [`Linear`]           | finite; not rotation invariant             |
+
+mod corotational;
+mod linear;
+mod neo_hookean;
+mod stable_neo_hookean;
+mod stvk;
+
+use std::fmt;
+use std::str::FromStr;
+
+pub use corotational::Corotational;
+pub use linear::Linear;
+pub use neo_hookean::NeoHookean;
+pub use stable_neo_hookean::StableNeoHookean;
+pub use stvk::Stvk;
+
+use nalgebra::SymmetricEigen;
+
+use crate::material::Lame;
+use crate::math::{Mat2, Mat4, Real};
+
+/// A hyperelastic energy density of the deformation gradient.
+///
+/// Implementations must be cheap to copy and free of interior state, so solvers can evaluate
+/// them from many threads at once.
+pub trait Energy: Send + Sync + Clone + fmt::Debug {
+    /// The name used on the command line and in files (`stvk`, `neo-hookean`, ...).
+    fn name(&self) -> &'static str;
+
+    /// Strain energy density `psi(F)`, J/m^2 per unit thickness.
+    fn psi(&self, f: &Mat2) -> Real;
+
+    /// First Piola-Kirchhoff stress `P = dpsi/dF`, Pa.
+    fn pk1(&self, f: &Mat2) -> Mat2;
+
+    /// `dP/dF` as a 4x4 matrix on `vec(F)` (column-major flattening, see [`crate::math`]).
+    fn dpk1(&self, f: &Mat2) -> Mat4;
+
+    /// `dP/dF` projected onto the positive semi-definite cone (negative eigenvalues clamped to
+    /// zero), for Newton solvers that need a descent direction. The default does a symmetric
+    /// eigendecomposition of [`Energy::dpk1`]; energies may override it with a closed form.
+    fn dpk1_projected(&self, f: &Mat2) -> Mat4 {
+        project_psd(&self.dpk1(f))
+    }
+
+    /// `psi` and `P` together; energies override it when the two share work.
+    fn psi_pk1(&self, f: &Mat2) -> (Real, Mat2) {
+        (self.psi(f), self.pk1(f))
+    }
+}
+
+/// Clamp the eigenvalues of the symmetric part of `m` at zero and rebuild it.
+pub fn project_psd(m: &Mat4) -> Mat4 {
+    let sym = (m + m.transpose()) * 0.5;
+    let mut eig = SymmetricEigen::new(sym);
+    if eig.eigenvalues.iter().all(|&l| l >= 0.0) {
+        return sym;
+    }
+    eig.eigenvalues.iter_mut().for_each(|l| *l = l.max(0.0));
+    eig.recompose()
+}
+
+/// The energies by name, for the command line, scene files and runtime selection.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum EnergyKind {
+    /// Saint Venant-Kirchhoff.
+    Stvk,
+    /// Co-rotational.
+    Corotational,
+    /// Compressible Neo-Hookean (standard form).
+    NeoHookean,
+    /// Stable Neo-Hookean (Smith et al. 2018).
+    StableNeoHookean,
+    /// Linear (small-strain) elasticity.
+    Linear,
+}
+
+impl EnergyKind {
+    /// Every energy, in the order tables list them.
+    pub const ALL: [EnergyKind; 5] = [
+        EnergyKind::Stvk,
+        EnergyKind::Corotational,
+        EnergyKind::NeoHookean,
+        EnergyKind::StableNeoHookean,
+        EnergyKind::Linear,
+    ];
+
+    /// The name used on the command line and in files.
+    pub fn name(self) -> &'static str {
+        match self {
+            EnergyKind::Stvk => "stvk",
+            EnergyKind::Corotational => "corotational",
+            EnergyKind::NeoHookean => "neo-hookean",
+            EnergyKind::StableNeoHookean => "stable-neo-hookean",
+            EnergyKind::Linear => "linear",
+        }
+    }
+
+    /// Build the energy with the given Lamé parameters.
+    pub fn build(self, lame: Lame) -> Result<AnyEnergy, EnergyError> {
+        Ok(match self {
+            EnergyKind::Stvk => AnyEnergy::Stvk(Stvk::new(lame)),
+            EnergyKind::Corotational => AnyEnergy::Corotational(Corotational::new(lame)),
+            EnergyKind::NeoHookean => AnyEnergy::NeoHookean(NeoHookean::new(lame)),
+            EnergyKind::StableNeoHookean => {
+                AnyEnergy::StableNeoHookean(StableNeoHookean::new(lame)?)
+            }
+            EnergyKind::Linear => AnyEnergy::Linear(Linear::new(lame)),
+        })
+    }
+}
+
+impl fmt::Display for EnergyKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl FromStr for EnergyKind {
+    type Err = EnergyError;
+    fn from_str(s: &str) -> Result<Self, EnergyError> {
+        EnergyKind::ALL
+            .into_iter()
+            .find(|k| k.name() == s)
+            .ok_or_else(|| EnergyError::UnknownName(s.to_owned()))
+    }
+}
+
+/// Errors raised when choosing or building an energy.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum EnergyError {
+    /// The name is not one of [`EnergyKind::ALL`].
+    #[error(
+        "unknown energy `{0}` (expected one of: stvk, corotational, neo-hookean, stable-neo-hookean, linear)"
+    )]
+    UnknownName(String),
+    /// The Lamé parameters are outside the energy's domain.
+    #[error("{energy}: {message}")]
+    Parameters {
+        /// Energy name.
+        energy: &'static str,
+        /// What is wrong.
+        message: String,
+    },
+}
+
+/// Any of the built-in energies, chosen at run time.
+///
+/// It implements [`Energy`] by a `match` per call. Hot loops should instead be monomorphised
+/// with [`dispatch_energy!`](crate::dispatch_energy), which hands the concrete type to a
+/// generic body.
+#[derive(Clone, Debug)]
+pub enum AnyEnergy {
+    /// See [`Stvk`].
+    Stvk(Stvk),
+    /// See [`Corotational`].
+    Corotational(Corotational),
+    /// See [`NeoHookean`].
+    NeoHookean(NeoHookean),
+    /// See [`StableNeoHookean`].
+    StableNeoHookean(StableNeoHookean),
+    /// See [`Linear`].
+    Linear(Linear),
+}
+
+/// Run `$body` with `$e` bound to the concrete energy inside an [`AnyEnergy`], so generic code
+/// is monomorphised once per energy instead of matching per element.
+///
+/// ```
+/// use fem_core::{dispatch_energy, energy::{Energy, EnergyKind}, material::Material, PlaneModel};
+/// let lame = Material::new(1000.0, 0.3, 1.0).unwrap().lame(PlaneModel::PlaneStrain);
+/// let any = EnergyKind::NeoHookean.build(lame).unwrap();
+/// let psi = dispatch_energy!(&any, e => e.psi(&nalgebra::Matrix2::identity()));
+/// assert_eq!(psi, 0.0);
+/// ```
+#[macro_export]
+macro_rules! dispatch_energy {
+    ($any:expr, $e:ident => $body:expr) => {
+        match $any {
+            $crate::energy::AnyEnergy::Stvk($e) => $body,
+            $crate::energy::AnyEnergy::Corotational($e) => $body,
+            $crate::energy::AnyEnergy::NeoHookean($e) => $body,
+            $crate::energy::AnyEnergy::StableNeoHookean($e) => $body,
+            $crate::energy::AnyEnergy::Linear($e) => $body,
+        }
+    };
+}
+
+impl AnyEnergy {
+    /// Which energy this is.
+    pub fn kind(&self) -> EnergyKind {
+        match self {
+            AnyEnergy::Stvk(_) => EnergyKind::Stvk,
+            AnyEnergy::Corotational(_) => EnergyKind::Corotational,
+            AnyEnergy::NeoHookean(_) => EnergyKind::NeoHookean,
+            AnyEnergy::StableNeoHookean(_) => EnergyKind::StableNeoHookean,
+            AnyEnergy::Linear(_) => EnergyKind::Linear,
+        }
+    }
+}
+
+impl Energy for AnyEnergy {
+    fn name(&self) -> &'static str {
+        self.kind().name()
+    }
+    fn psi(&self, f: &Mat2) -> Real {
+        dispatch_energy!(self, e => e.psi(f))
+    }
+    fn pk1(&self, f: &Mat2) -> Mat2 {
+        dispatch_energy!(self, e => e.pk1(f))
+    }
+    fn dpk1(&self, f: &Mat2) -> Mat4 {
+        dispatch_energy!(self, e => e.dpk1(f))
+    }
+    fn dpk1_projected(&self, f: &Mat2) -> Mat4 {
+        dispatch_energy!(self, e => e.dpk1_projected(f))
+    }
+    fn psi_pk1(&self, f: &Mat2) -> (Real, Mat2) {
+        dispatch_energy!(self, e => e.psi_pk1(f))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_round_trip_and_unknown_names_list_the_valid_ones() {
+        for k in EnergyKind::ALL {
+            assert_eq!(k.name().parse::<EnergyKind>().unwrap(), k);
+        }
+        let err = "neohookean".parse::<EnergyKind>().unwrap_err().to_string();
+        assert!(err.contains("`neohookean`") && err.contains("stable-neo-hookean"));
+    }
+
+    #[test]
+    fn projection_clamps_negative_eigenvalues_only() {
+        let m = Mat4::from_diagonal(&crate::math::Vec4::new(2.0, -1.0, 3.0, 0.5));
+        let p = project_psd(&m);
+        assert_eq!(
+            p,
+            Mat4::from_diagonal(&crate::math::Vec4::new(2.0, 0.0, 3.0, 0.5))
+        );
+        let spd = Mat4::identity() * 4.0;
+        assert_eq!(project_psd(&spd), spd);
+    }
+}

@@ -1,0 +1,85 @@
+//! Compressible Neo-Hookean, the standard form
+//! `psi = mu/2 (tr(F^T F) - 2) - mu log J + lambda/2 (log J)^2` (Bonet & Wood, *Nonlinear
+//! Continuum Mechanics for FEA*, 2nd ed., Eq. 6.28, in 2D).
+//!
+//! **Departure from the paper**: Eq. 2 of the paper prints `-mu log det(F^T F) + lambda/2
+//! log^2 det(F^T F)` with `tr(F^T F) - 3`; that expression is not stress-free at `F = I` in 2D
+//! (and doubles the log terms). We implement the standard form above, which is stress-free at
+//! rest and linearises to linear elasticity with the same Lamé parameters.
+//!
+//! `P = mu (F - F^-T) + lambda log J F^-T`;
+//! `dP = mu dF + (mu - lambda log J) F^-T dF^T F^-T + lambda (F^-T : dF) F^-T`.
+//!
+//! **Inverted elements (`J <= 0`)**: the energy is undefined there. `psi` returns `+inf`, and `P`
+//! and `dP/dF` are NaN, so a solver's finiteness check stops the run at the first inverted
+//! element (and a line search rejects the step). Use `stable-neo-hookean` when elements may
+//! invert.
+
+use super::Energy;
+use crate::material::Lame;
+use crate::math::{Mat2, Mat4, Real, cofactor, linear_map_matrix, outer};
+
+/// Compressible Neo-Hookean energy.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct NeoHookean {
+    mu: Real,
+    lambda: Real,
+}
+
+impl NeoHookean {
+    /// With the given Lamé parameters.
+    pub fn new(lame: Lame) -> Self {
+        NeoHookean {
+            mu: lame.mu,
+            lambda: lame.lambda,
+        }
+    }
+}
+
+impl Energy for NeoHookean {
+    fn name(&self) -> &'static str {
+        "neo-hookean"
+    }
+
+    #[inline]
+    fn psi(&self, f: &Mat2) -> Real {
+        let j = f.determinant();
+        if j <= 0.0 {
+            return Real::INFINITY;
+        }
+        let lj = j.ln();
+        0.5 * self.mu * (f.norm_squared() - 2.0) - self.mu * lj + 0.5 * self.lambda * lj * lj
+    }
+
+    #[inline]
+    fn pk1(&self, f: &Mat2) -> Mat2 {
+        self.psi_pk1(f).1
+    }
+
+    #[inline]
+    fn psi_pk1(&self, f: &Mat2) -> (Real, Mat2) {
+        let j = f.determinant();
+        if j <= 0.0 {
+            return (Real::INFINITY, Mat2::from_element(Real::NAN));
+        }
+        let lj = j.ln();
+        let f_inv_t = cofactor(f) / j;
+        let psi =
+            0.5 * self.mu * (f.norm_squared() - 2.0) - self.mu * lj + 0.5 * self.lambda * lj * lj;
+        let p = (f - f_inv_t) * self.mu + f_inv_t * (self.lambda * lj);
+        (psi, p)
+    }
+
+    fn dpk1(&self, f: &Mat2) -> Mat4 {
+        let j = f.determinant();
+        if j <= 0.0 {
+            return Mat4::from_element(Real::NAN);
+        }
+        let lj = j.ln();
+        let f_inv_t = cofactor(f) / j;
+        let c = self.mu - self.lambda * lj;
+        Mat4::identity() * self.mu
+            + linear_map_matrix(|df| f_inv_t * df.transpose() * f_inv_t) * c
+            + outer(&f_inv_t, &f_inv_t) * self.lambda
+    }
+}

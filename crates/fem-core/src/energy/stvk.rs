@@ -1,0 +1,75 @@
+//! Saint Venant-Kirchhoff: `psi = mu |E|^2 + lambda/2 tr(E)^2` with Green strain
+//! `E = (F^T F - I) / 2` (paper Eq. 2; Kim & Eberle, *Dynamic Deformables*, 2022, sec. 3.3).
+//!
+//! `P = F S` with `S = 2 mu E + lambda tr(E) I`. `dP = dF S + F dS`, `dS = 2 mu dE + lambda
+//! tr(dE) I`, `dE = sym(F^T dF)`.
+//!
+//! **Inverted elements (`J <= 0`)**: everything stays finite, but the energy depends on `F` only
+//! through `F^T F`, so a reflected element (`F = diag(-1, 1)`) has zero energy: StVK offers no
+//! resistance to inversion, and elements pushed through `J = 0` can stay inverted. Its stiffness
+//! also softens under strong compression, which is why it needs smaller time steps at high E.
+
+use super::Energy;
+use crate::material::Lame;
+use crate::math::{Mat2, Mat4, Real, ddot, linear_map_matrix, sym};
+
+/// Saint Venant-Kirchhoff energy.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Stvk {
+    mu: Real,
+    lambda: Real,
+}
+
+impl Stvk {
+    /// With the given Lamé parameters.
+    pub fn new(lame: Lame) -> Self {
+        Stvk {
+            mu: lame.mu,
+            lambda: lame.lambda,
+        }
+    }
+
+    #[inline]
+    fn green(f: &Mat2) -> Mat2 {
+        (f.transpose() * f - Mat2::identity()) * 0.5
+    }
+
+    #[inline]
+    fn pk2(&self, e: &Mat2) -> Mat2 {
+        e * (2.0 * self.mu) + Mat2::identity() * (self.lambda * e.trace())
+    }
+}
+
+impl Energy for Stvk {
+    fn name(&self) -> &'static str {
+        "stvk"
+    }
+
+    #[inline]
+    fn psi(&self, f: &Mat2) -> Real {
+        let e = Self::green(f);
+        let tr = e.trace();
+        self.mu * ddot(&e, &e) + 0.5 * self.lambda * tr * tr
+    }
+
+    #[inline]
+    fn pk1(&self, f: &Mat2) -> Mat2 {
+        f * self.pk2(&Self::green(f))
+    }
+
+    #[inline]
+    fn psi_pk1(&self, f: &Mat2) -> (Real, Mat2) {
+        let e = Self::green(f);
+        let tr = e.trace();
+        let psi = self.mu * ddot(&e, &e) + 0.5 * self.lambda * tr * tr;
+        (psi, f * self.pk2(&e))
+    }
+
+    fn dpk1(&self, f: &Mat2) -> Mat4 {
+        let s = self.pk2(&Self::green(f));
+        linear_map_matrix(|df| {
+            let de = sym(&(f.transpose() * df));
+            df * s + f * self.pk2(&de)
+        })
+    }
+}

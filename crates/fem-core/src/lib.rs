@@ -1,0 +1,47 @@
+//! # fem-core: energies, the linear triangle, assembly and stress for 2D elasticity
+//!
+//! The dependency-light layer of the framework: pick it to evaluate hyperelastic energies and
+//! their derivatives, assemble forces and stiffness matrices on a triangle mesh, and compute
+//! stresses, without a solver or a mesher.
+//!
+//! - [`material`]: Young's modulus, Poisson ratio, density; Lamé parameters (plane strain or
+//!   plane stress).
+//! - [`energy`]: the [`Energy`](energy::Energy) trait and five energies (`stvk`,
+//!   `corotational`, `neo-hookean`, `stable-neo-hookean`, `linear`), each seeing only `F`.
+//! - [`element`]: the Tri3 element (`Dm^-1`, rest area, chain rule from `P` to nodal forces).
+//! - [`mesh`]: a validated mesh with rest data, adjacency and lumped masses.
+//! - [`assembly`]: energy, forces and stiffness; serial reference and bit-identical parallel
+//!   paths.
+//! - [`stress`]: Cauchy, von Mises (formula stated) and principal stresses.
+//! - [`fd`]: the finite-difference oracle the tests use.
+//!
+//! Units are SI, per unit thickness. Notation (`F`, `P`, `J`, `psi`) follows continuum
+//! mechanics; fourth-order tensors act on the column-major `vec(F)` ([`math`]).
+//!
+//! What this crate does not know: time stepping, boundary conditions, contact, file formats
+//! and meshing. Those live in `fem-solvers`, `fem-mesh` and `fem-cases`.
+//!
+//! ```
+//! use fem_core::{assembly, energy::{EnergyKind, NeoHookean}, material::Material, mesh::Mesh, PlaneModel};
+//! let mesh = Mesh::from_arrays(&[[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]], &[[0, 1, 2]]).unwrap();
+//! let lame = Material::new(1000.0, 0.3, 1.0).unwrap().lame(PlaneModel::PlaneStrain);
+//! let energy = NeoHookean::new(lame);
+//! // Stretch the element by 10% along x and read the nodal forces.
+//! let x: Vec<_> = mesh.vertices().iter().map(|p| nalgebra::Vector2::new(1.1 * p.x, p.y)).collect();
+//! let mut f = vec![nalgebra::Vector2::zeros(); 3];
+//! let report = assembly::populate_forces_serial(&mesh, &energy, &x, &mut f);
+//! assert!((report.min_det_f - 1.1).abs() < 1e-12);
+//! assert!(f[1].x < 0.0); // the stretched vertex is pulled back
+//! ```
+
+pub mod assembly;
+pub mod element;
+pub mod energy;
+pub mod fd;
+pub mod material;
+pub mod math;
+pub mod mesh;
+pub mod polar;
+pub mod stress;
+
+pub use material::{Lame, Material, MaterialError, PlaneModel};

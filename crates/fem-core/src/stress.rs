@@ -1,0 +1,169 @@
+//! Cauchy stress, von Mises stress and principal stresses, per element and per vertex.
+//!
+//! `sigma = P F^T / J` is the in-plane Cauchy stress (Pa). The 2D energies define no
+//! out-of-plane stress, so the von Mises formula has to say what `sigma_zz` is:
+//! - [`VonMisesFormula::PlaneStress`] (default): `sigma_zz = 0`,
+//!   `sigma_vm = sqrt(sxx^2 - sxx syy + syy^2 + 3 sxy^2)`;
+//! - [`VonMisesFormula::PlaneStrain`]: `sigma_zz = nu (sxx + syy)` (exact for linear elasticity,
+//!   a small-strain estimate for the hyperelastic energies), then the full 3D formula
+//!   `sqrt(((sxx - syy)^2 + (syy - szz)^2 + (szz - sxx)^2) / 2 + 3 sxy^2)`.
+//!
+//! For an inverted element (`J < 0`) `sigma` is the formula's value; at `J = 0`, and for energies
+//! undefined at `J <= 0` (Neo-Hookean), it is not finite. Vertex averages skip non-finite
+//! element values.
+
+use crate::energy::Energy;
+use crate::math::{Mat2, Real, Vec2};
+use crate::mesh::Mesh;
+
+/// Which out-of-plane stress the von Mises stress assumes (see the module docs).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum VonMisesFormula {
+    /// `sigma_zz = 0`.
+    #[default]
+    PlaneStress,
+    /// `sigma_zz = nu (sigma_xx + sigma_yy)`.
+    PlaneStrain {
+        /// Poisson ratio `nu`.
+        poisson_ratio: Real,
+    },
+}
+
+impl VonMisesFormula {
+    /// A short description for run summaries.
+    pub fn describe(&self) -> String {
+        match self {
+            VonMisesFormula::PlaneStress => "plane stress (sigma_zz = 0)".to_owned(),
+            VonMisesFormula::PlaneStrain { poisson_ratio } => {
+                format!("plane strain (sigma_zz = {poisson_ratio} (sigma_xx + sigma_yy))")
+            }
+        }
+    }
+}
+
+/// Cauchy stress `P F^T / J`.
+#[inline]
+pub fn cauchy(f: &Mat2, p: &Mat2) -> Mat2 {
+    p * f.transpose() / f.determinant()
+}
+
+/// Von Mises stress of an in-plane Cauchy stress.
+#[inline]
+pub fn von_mises(sigma: &Mat2, formula: VonMisesFormula) -> Real {
+    let (sxx, syy) = (sigma[(0, 0)], sigma[(1, 1)]);
+    let sxy = 0.5 * (sigma[(0, 1)] + sigma[(1, 0)]);
+    match formula {
+        VonMisesFormula::PlaneStress => {
+            (sxx * sxx - sxx * syy + syy * syy + 3.0 * sxy * sxy).sqrt()
+        }
+        VonMisesFormula::PlaneStrain { poisson_ratio } => {
+            let szz = poisson_ratio * (sxx + syy);
+            let d = (sxx - syy).powi(2) + (syy - szz).powi(2) + (szz - sxx).powi(2);
+            (0.5 * d + 3.0 * sxy * sxy).sqrt()
+        }
+    }
+}
+
+/// In-plane principal stresses `(sigma_1, sigma_2)`, `sigma_1 >= sigma_2`.
+#[inline]
+pub fn principal(sigma: &Mat2) -> (Real, Real) {
+    let (sxx, syy) = (sigma[(0, 0)], sigma[(1, 1)]);
+    let sxy = 0.5 * (sigma[(0, 1)] + sigma[(1, 0)]);
+    let c = 0.5 * (sxx + syy);
+    let r = (0.25 * (sxx - syy).powi(2) + sxy * sxy).sqrt();
+    (c + r, c - r)
+}
+
+/// Stress state of one element.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ElementStress {
+    /// Cauchy stress, Pa.
+    pub cauchy: Mat2,
+    /// Von Mises stress, Pa.
+    pub von_mises: Real,
+    /// Principal stresses, Pa, largest first.
+    pub principal: (Real, Real),
+    /// `det F`.
+    pub det_f: Real,
+}
+
+/// The stress of every element at positions `x`, in triangle order, into `out`.
+pub fn populate_element_stress<E: Energy>(
+    mesh: &Mesh,
+    energy: &E,
+    x: &[Vec2],
+    formula: VonMisesFormula,
+    out: &mut Vec<ElementStress>,
+) {
+    out.clear();
+    out.extend(mesh.elements().iter().enumerate().map(|(t, el)| {
+        let f = el.deformation_gradient(mesh.gather(t, x));
+        let sigma = cauchy(&f, &energy.pk1(&f));
+        ElementStress {
+            cauchy: sigma,
+            von_mises: von_mises(&sigma, formula),
+            principal: principal(&sigma),
+            det_f: f.determinant(),
+        }
+    }));
+}
+
+/// Area-weighted average at each vertex of a per-element field, skipping non-finite values
+/// (a vertex with none left gets NaN). Writes one value per vertex into `out`.
+pub fn vertex_average(mesh: &Mesh, per_element: &[Real], out: &mut [Real]) {
+    assert_eq!(
+        per_element.len(),
+        mesh.n_triangles(),
+        "one value per triangle"
+    );
+    assert_eq!(out.len(), mesh.n_vertices(), "one output per vertex");
+    for (v, o) in out.iter_mut().enumerate() {
+        let (mut sum, mut weight) = (0.0, 0.0);
+        for &(e, _) in mesh.adjacency().of(v) {
+            let value = per_element[e as usize];
+            if value.is_finite() {
+                let a = mesh.elements()[e as usize].area;
+                sum += a * value;
+                weight += a;
+            }
+        }
+        *o = if weight > 0.0 {
+            sum / weight
+        } else {
+            Real::NAN
+        };
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn uniaxial_stress_has_von_mises_equal_to_the_stress() {
+        let s = Mat2::new(5.0, 0.0, 0.0, 0.0);
+        assert_eq!(von_mises(&s, VonMisesFormula::PlaneStress), 5.0);
+        assert_eq!(principal(&s), (5.0, 0.0));
+    }
+
+    #[test]
+    fn pure_shear_has_von_mises_sqrt3_tau() {
+        let s = Mat2::new(0.0, 2.0, 2.0, 0.0);
+        let vm = von_mises(&s, VonMisesFormula::PlaneStress);
+        assert!((vm - 2.0 * 3f64.sqrt()).abs() < 1e-14);
+        let (s1, s2) = principal(&s);
+        assert!((s1 - 2.0).abs() < 1e-14 && (s2 + 2.0).abs() < 1e-14);
+        // sigma_zz = nu * 0 = 0 here, so both formulas agree.
+        let vm2 = von_mises(&s, VonMisesFormula::PlaneStrain { poisson_ratio: 0.3 });
+        assert!((vm - vm2).abs() < 1e-14);
+    }
+
+    #[test]
+    fn hydrostatic_plane_strain_stress_has_von_mises_from_sigma_zz() {
+        // sxx = syy = p, szz = 2 nu p: von Mises = |p - 2 nu p|.
+        let s = Mat2::new(1.0, 0.0, 0.0, 1.0);
+        let vm = von_mises(&s, VonMisesFormula::PlaneStrain { poisson_ratio: 0.3 });
+        assert!((vm - 0.4).abs() < 1e-14);
+        assert_eq!(von_mises(&s, VonMisesFormula::PlaneStress), 1.0);
+    }
+}
