@@ -48,10 +48,8 @@ fn forces(c: &mut Criterion) {
                     .num_threads(threads)
                     .build()
                     .unwrap();
-                let id = BenchmarkId::new(
-                    format!("{}/{}t", kind.name(), threads),
-                    mesh.n_triangles(),
-                );
+                let id =
+                    BenchmarkId::new(format!("{}/{}t", kind.name(), threads), mesh.n_triangles());
                 let mut scratch = Scratch::new();
                 group.bench_function(id, |b| {
                     pool.install(|| {

@@ -98,7 +98,11 @@ fn stiffness_is_minus_the_fd_jacobian_of_the_forces() {
         // Symmetric, as a Hessian must be.
         for (r, c, v) in k.matrix.triplets() {
             let t = k.matrix.get(c, r);
-            assert!((v - t).abs() <= 1e-10 * v.abs().max(1.0), "{}: K not symmetric", energy.name());
+            assert!(
+                (v - t).abs() <= 1e-10 * v.abs().max(1.0),
+                "{}: K not symmetric",
+                energy.name()
+            );
         }
     }
 }
@@ -107,7 +111,11 @@ fn stiffness_is_minus_the_fd_jacobian_of_the_forces() {
 fn projected_stiffness_is_positive_semidefinite() {
     let mesh = small_mesh();
     // A strongly compressed state, where StVK and co-rotational have indefinite tangents.
-    let x: Vec<Vec2> = mesh.vertices().iter().map(|p| Vec2::new(0.45 * p.x, 1.1 * p.y)).collect();
+    let x: Vec<Vec2> = mesh
+        .vertices()
+        .iter()
+        .map(|p| Vec2::new(0.45 * p.x, 1.1 * p.y))
+        .collect();
     let n = 2 * mesh.n_vertices();
     let mut rng = Rng::new(9);
     for energy in energies() {
@@ -145,7 +153,11 @@ fn patch_test_affine_deformation_gives_uniform_f_and_zero_interior_force() {
         .collect();
     let mesh = Mesh::new(vertices, base.triangles().to_vec()).unwrap();
     let a = Mat2::new(1.25, 0.3, -0.15, 0.85);
-    let x: Vec<Vec2> = mesh.vertices().iter().map(|p| a * p + Vec2::new(0.4, -2.0)).collect();
+    let x: Vec<Vec2> = mesh
+        .vertices()
+        .iter()
+        .map(|p| a * p + Vec2::new(0.4, -2.0))
+        .collect();
     for (t, el) in mesh.elements().iter().enumerate() {
         let f = el.deformation_gradient(mesh.gather(t, &x));
         assert!((f - a).norm() < 1e-13, "element {t}: F = {f:?}");
@@ -169,7 +181,11 @@ fn patch_test_affine_deformation_gives_uniform_f_and_zero_interior_force() {
             }
         }
         // Boundary forces are the traction P N integrated on each edge; they sum to zero.
-        assert!(boundary_total.norm() < 1e-12 * scale, "{}: net force", energy.name());
+        assert!(
+            boundary_total.norm() < 1e-12 * scale,
+            "{}: net force",
+            energy.name()
+        );
         // And on the right edge (N = +x, length 2) they sum to -(P N) * 2... with the sign of
         // an internal force: the body pulls the edge back.
         let right: Vec2 = mesh
@@ -197,7 +213,9 @@ fn with_threads<T: Send>(n: usize, job: impl FnOnce() -> T + Send) -> T {
 }
 
 fn bits(v: &[Vec2]) -> Vec<u64> {
-    v.iter().flat_map(|p| [p.x.to_bits(), p.y.to_bits()]).collect()
+    v.iter()
+        .flat_map(|p| [p.x.to_bits(), p.y.to_bits()])
+        .collect()
 }
 
 /// Parallel assembly equals the serial reference bit for bit with 1, 2 and 4 threads, on a
@@ -223,12 +241,26 @@ fn parallel_assembly_is_bit_identical_to_serial_for_1_2_4_threads() {
                 (f, rep, e, k)
             });
             let name = energy.name();
-            assert_eq!(bits(&f), bits(&f_ref), "{name}: forces differ with {threads} threads");
-            assert_eq!(rep, rep_ref, "{name}: report differs with {threads} threads");
-            assert_eq!(e.to_bits(), e_ref.to_bits(), "{name}: energy differs with {threads} threads");
+            assert_eq!(
+                bits(&f),
+                bits(&f_ref),
+                "{name}: forces differ with {threads} threads"
+            );
+            assert_eq!(
+                rep, rep_ref,
+                "{name}: report differs with {threads} threads"
+            );
+            assert_eq!(
+                e.to_bits(),
+                e_ref.to_bits(),
+                "{name}: energy differs with {threads} threads"
+            );
             let kb: Vec<u64> = k.matrix.values.iter().map(|v| v.to_bits()).collect();
             let kb_ref: Vec<u64> = k_ref.matrix.values.iter().map(|v| v.to_bits()).collect();
-            assert!(kb == kb_ref, "{name}: stiffness differs with {threads} threads");
+            assert!(
+                kb == kb_ref,
+                "{name}: stiffness differs with {threads} threads"
+            );
         }
     }
 }

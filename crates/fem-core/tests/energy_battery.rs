@@ -178,7 +178,12 @@ fn check_projected_dpk1_is_psd<E: Energy>(e: &E, fs: &[Mat2]) {
     // At rest the tangent is linear elasticity: eigenvalues 2 mu (deviatoric, twice),
     // 2 (mu + lambda) (volumetric) and 0 (infinitesimal rotation), so PSD with one zero.
     let positive = at_rest.iter().filter(|&&l| l > 1e-9 * modulus()).count();
-    assert_eq!(positive, 3, "{}: rest tangent eigenvalues {at_rest}", e.name());
+    assert_eq!(
+        positive,
+        3,
+        "{}: rest tangent eigenvalues {at_rest}",
+        e.name()
+    );
 }
 
 /// The first Piola-Kirchhoff stress is the gradient of psi, so `dP/dF` must be symmetric.
@@ -230,7 +235,10 @@ macro_rules! energy_battery {
                     let result = std::panic::catch_unwind(|| {
                         check_frame_indifferent(&energy(), &samples(4, $inv))
                     });
-                    assert!(result.is_err(), "expected this energy to depend on rotation");
+                    assert!(
+                        result.is_err(),
+                        "expected this energy to depend on rotation"
+                    );
                 }
             }
 
@@ -305,5 +313,8 @@ fn large_stretch_orders_stvk_stiffest() {
     let stvk = Stvk::new(lame()).pk1(&f)[(0, 0)];
     let nh = NeoHookean::new(lame()).pk1(&f)[(0, 0)];
     let corot = Corotational::new(lame()).pk1(&f)[(0, 0)];
-    assert!(stvk > nh && stvk > corot, "stvk {stvk}, nh {nh}, corot {corot}");
+    assert!(
+        stvk > nh && stvk > corot,
+        "stvk {stvk}, nh {nh}, corot {corot}"
+    );
 }

@@ -1,6 +1,8 @@
 //! Stable Neo-Hookean (Smith, de Goes & Kim, "Stable Neo-Hookean Flesh Simulation", ACM TOG
 //! 2018), in 2D: `psi = mu'/2 (I_C - 2) + lambda'/2 (J - alpha)^2 - mu'/2 log(I_C + 1)` with
-//! `I_C = tr(F^T F)`.
+//! `I_C = tr(F^T F)`, minus its value at `F = I` (`lambda'/2 (1 - alpha)^2 - mu'/2 log 3`) so
+//! that the rest state has zero energy like every other energy here (a constant changes no
+//! force).
 //!
 //! The 3D paper's constants are re-derived for 2D. Stress-free rest (`P(I) = 0`) needs
 //! `alpha = 1 + 2 mu' / (3 lambda')`. Matching the linearisation at `F = I` to linear elasticity
@@ -26,6 +28,8 @@ pub struct StableNeoHookean {
     mu: Real,
     lambda: Real,
     alpha: Real,
+    /// `psi` of the formula at `F = I`, subtracted so the rest state has zero energy.
+    rest_offset: Real,
 }
 
 impl StableNeoHookean {
@@ -43,10 +47,13 @@ impl StableNeoHookean {
                 ),
             });
         }
+        let alpha = 1.0 + 2.0 * mu / (3.0 * lambda);
+        let rest_offset = 0.5 * lambda * (1.0 - alpha).powi(2) - 0.5 * mu * 3.0_f64.ln();
         Ok(StableNeoHookean {
             mu,
             lambda,
-            alpha: 1.0 + 2.0 * mu / (3.0 * lambda),
+            alpha,
+            rest_offset,
         })
     }
 }
@@ -60,7 +67,9 @@ impl Energy for StableNeoHookean {
     fn psi(&self, f: &Mat2) -> Real {
         let ic = f.norm_squared();
         let d = f.determinant() - self.alpha;
-        0.5 * self.mu * (ic - 2.0) + 0.5 * self.lambda * d * d - 0.5 * self.mu * (ic + 1.0).ln()
+        0.5 * self.mu * (ic - 2.0) + 0.5 * self.lambda * d * d
+            - 0.5 * self.mu * (ic + 1.0).ln()
+            - self.rest_offset
     }
 
     #[inline]

@@ -1,0 +1,169 @@
+//! Tidy: project rules that plain `cargo test` enforces.
+//!
+//! - The crate layering written in `ARCHITECTURE.md` (the block after `tidy:layering`) matches
+//!   `cargo metadata`: every workspace crate is listed, every listed crate exists, and each
+//!   crate depends (normally, for building, or for development) on exactly the workspace
+//!   crates its line names.
+//! - Every path `ARCHITECTURE.md` names in backticks exists.
+//! - Every Rust source file opens with a `//!` doc comment.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .expect("xtask lives one level below the root")
+        .to_path_buf()
+}
+
+fn architecture() -> String {
+    std::fs::read_to_string(root().join("ARCHITECTURE.md")).expect("ARCHITECTURE.md exists")
+}
+
+/// The layering block of ARCHITECTURE.md: `crate -> dep, dep` lines (`-> (none)` for none).
+fn documented_layering() -> BTreeMap<String, BTreeSet<String>> {
+    let text = architecture();
+    let start = text
+        .find("tidy:layering")
+        .expect("ARCHITECTURE.md has a `tidy:layering` block");
+    let block = text[start..]
+        .split("```")
+        .nth(1)
+        .expect("the layering block is fenced with ```");
+    let mut map = BTreeMap::new();
+    for line in block.lines().map(str::trim).filter(|l| l.contains("->")) {
+        let (krate, deps) = line.split_once("->").unwrap();
+        let deps: BTreeSet<String> = deps
+            .split(',')
+            .map(str::trim)
+            .filter(|d| !d.is_empty() && *d != "(none)")
+            .map(str::to_owned)
+            .collect();
+        map.insert(krate.trim().to_owned(), deps);
+    }
+    map
+}
+
+/// Workspace crates and, for each, the workspace crates it depends on (any kind).
+fn actual_layering() -> BTreeMap<String, BTreeSet<String>> {
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".to_owned());
+    let out = Command::new(cargo)
+        .args(["metadata", "--format-version", "1", "--no-deps"])
+        .current_dir(root())
+        .output()
+        .expect("cargo metadata runs");
+    assert!(
+        out.status.success(),
+        "cargo metadata failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let meta: serde_json::Value = serde_json::from_slice(&out.stdout).expect("metadata is JSON");
+    let packages = meta["packages"].as_array().expect("packages array");
+    let names: BTreeSet<String> = packages
+        .iter()
+        .map(|p| p["name"].as_str().unwrap().to_owned())
+        .collect();
+    packages
+        .iter()
+        .map(|p| {
+            let deps = p["dependencies"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|d| d["name"].as_str().unwrap().to_owned())
+                .filter(|d| names.contains(d))
+                .collect();
+            (p["name"].as_str().unwrap().to_owned(), deps)
+        })
+        .collect()
+}
+
+#[test]
+fn crate_layering_matches_architecture_md() {
+    let documented = documented_layering();
+    let actual = actual_layering();
+    let doc_crates: BTreeSet<_> = documented.keys().collect();
+    let real_crates: BTreeSet<_> = actual.keys().collect();
+    assert_eq!(
+        doc_crates, real_crates,
+        "ARCHITECTURE.md's layering block must list exactly the workspace crates"
+    );
+    for (krate, deps) in &actual {
+        let allowed = &documented[krate];
+        let extra: Vec<_> = deps.difference(allowed).collect();
+        assert!(
+            extra.is_empty(),
+            "{krate} depends on {extra:?}, which ARCHITECTURE.md's layering does not allow"
+        );
+        let missing: Vec<_> = allowed.difference(deps).collect();
+        assert!(
+            missing.is_empty(),
+            "ARCHITECTURE.md says {krate} depends on {missing:?}, but it does not: keep it true"
+        );
+    }
+}
+
+#[test]
+fn paths_named_in_architecture_md_exist() {
+    let text = architecture();
+    let mut checked = 0;
+    for (i, piece) in text.split('`').enumerate() {
+        // Odd pieces are inside backticks.
+        let looks_like_path = i % 2 == 1
+            && !piece.contains(' ')
+            && (piece.contains('/') || piece.ends_with(".md") || piece.ends_with(".toml"))
+            && !piece.contains("::")
+            && !piece.starts_with("http");
+        if looks_like_path {
+            let path = root().join(piece.trim_end_matches('/'));
+            assert!(
+                path.exists(),
+                "ARCHITECTURE.md names `{piece}`, which does not exist"
+            );
+            checked += 1;
+        }
+    }
+    assert!(
+        checked >= 5,
+        "expected ARCHITECTURE.md to name paths, found {checked}"
+    );
+}
+
+fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        let path = entry.path();
+        let name = entry.file_name();
+        if path.is_dir() {
+            if name != "target" && !name.to_string_lossy().starts_with('.') {
+                rust_files(&path, out);
+            }
+        } else if path.extension().is_some_and(|e| e == "rs") {
+            out.push(path);
+        }
+    }
+}
+
+#[test]
+fn every_rust_file_opens_with_a_module_doc() {
+    let mut files = Vec::new();
+    rust_files(&root().join("crates"), &mut files);
+    rust_files(&root().join("xtask"), &mut files);
+    assert!(files.len() > 10, "found only {} Rust files", files.len());
+    let offenders: Vec<_> = files
+        .iter()
+        .filter(|f| {
+            let text = std::fs::read_to_string(f).unwrap_or_default();
+            !text.trim_start().starts_with("//!")
+        })
+        .map(|f| f.strip_prefix(root()).unwrap().display().to_string())
+        .collect();
+    assert!(
+        offenders.is_empty(),
+        "these files do not open with a `//!` doc comment: {offenders:?}"
+    );
+}
