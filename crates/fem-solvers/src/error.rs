@@ -1,0 +1,139 @@
+//! The one error type of the crate: bad input (named field and value) and runs that blow up
+//! (named step and vertex). Every message is a single line; nothing in this crate panics on
+//! bad input.
+
+use fem_core::math::Real;
+
+/// Why a model could not be built or a step could not be taken.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum SolverError {
+    /// A parameter is outside its domain.
+    #[error("{field} = {value}: {rule}")]
+    InvalidParameter {
+        /// Dotted field name (`explicit.dt`, `contact.stiffness`, ...).
+        field: String,
+        /// The rejected value, formatted.
+        value: String,
+        /// What the value must satisfy.
+        rule: &'static str,
+    },
+    /// A vertex index is out of range.
+    #[error("{field}: vertex index {index} is out of range (mesh has {n_vertices} vertices)")]
+    VertexOutOfRange {
+        /// Where the index came from (`pinned`, `prescribed_motion[2]`, ...).
+        field: String,
+        /// The bad index.
+        index: usize,
+        /// Number of mesh vertices.
+        n_vertices: usize,
+    },
+    /// An obstacle polygon is unusable.
+    #[error("obstacles[{index}]: {reason}")]
+    Obstacle {
+        /// Obstacle index.
+        index: usize,
+        /// What is wrong with it.
+        reason: String,
+    },
+    /// The state does not belong to the model (vertex or body count differs).
+    #[error("state has {got} {what}, model has {expected}")]
+    StateMismatch {
+        /// `vertices` or `bodies`.
+        what: &'static str,
+        /// Count in the state.
+        got: usize,
+        /// Count in the model.
+        expected: usize,
+    },
+    /// A stepper was built for another mesh.
+    #[error("stepper was built for a mesh of {expected} triangles, model has {got}")]
+    ModelMismatch {
+        /// Triangles in the model passed to `step`.
+        got: usize,
+        /// Triangles the stepper was built for.
+        expected: usize,
+    },
+    /// The run blew up: a position or velocity became NaN or infinite. The state is left at
+    /// the last good step.
+    #[error(
+        "step {step} (t = {time} s): vertex {vertex} became non-finite (x = [{x}, {y}], v = [{vx}, {vy}]); {inverted} inverted elements, min det F = {min_det_f}"
+    )]
+    NonFinite {
+        /// Index of the step that failed (0-based count of steps taken before it).
+        step: u64,
+        /// Time at the start of the failed step, s.
+        time: Real,
+        /// First vertex (lowest index) with a non-finite position or velocity.
+        vertex: usize,
+        /// Its would-be x coordinate.
+        x: Real,
+        /// Its would-be y coordinate.
+        y: Real,
+        /// Its would-be x velocity.
+        vx: Real,
+        /// Its would-be y velocity.
+        vy: Real,
+        /// Inverted elements seen in the failed step.
+        inverted: usize,
+        /// Smallest det F seen in the failed step.
+        min_det_f: Real,
+    },
+    /// A rigid body's pose or velocity became NaN or infinite.
+    #[error("step {step}: rigid body of obstacles[{body}] became non-finite")]
+    NonFiniteBody {
+        /// Index of the failed step.
+        step: u64,
+        /// Obstacle index.
+        body: usize,
+    },
+}
+
+impl SolverError {
+    /// Shorthand for [`SolverError::InvalidParameter`].
+    pub fn invalid(field: impl Into<String>, value: impl ToString, rule: &'static str) -> Self {
+        SolverError::InvalidParameter {
+            field: field.into(),
+            value: value.to_string(),
+            rule,
+        }
+    }
+}
+
+/// `Ok` when `value` is finite and > 0.
+pub(crate) fn check_positive(field: &str, value: Real) -> Result<(), SolverError> {
+    if value.is_finite() && value > 0.0 {
+        Ok(())
+    } else {
+        Err(SolverError::invalid(
+            field,
+            value,
+            "must be a finite number > 0",
+        ))
+    }
+}
+
+/// `Ok` when `value` is finite and >= 0.
+pub(crate) fn check_non_negative(field: &str, value: Real) -> Result<(), SolverError> {
+    if value.is_finite() && value >= 0.0 {
+        Ok(())
+    } else {
+        Err(SolverError::invalid(
+            field,
+            value,
+            "must be a finite number >= 0",
+        ))
+    }
+}
+
+/// `Ok` when both components are finite.
+pub(crate) fn check_finite_vec(field: &str, v: fem_core::math::Vec2) -> Result<(), SolverError> {
+    if v.x.is_finite() && v.y.is_finite() {
+        Ok(())
+    } else {
+        Err(SolverError::invalid(
+            field,
+            format!("[{}, {}]", v.x, v.y),
+            "components must be finite",
+        ))
+    }
+}

@@ -1,0 +1,288 @@
+//! Explicit FEM (paper Algorithm I): elastic forces from the energy (Eq. 3), then a
+//! first-order explicit update with exponential velocity damping.
+//!
+//! With `a = M^-1 (f + f_ext) + g` and `decay = exp(-c dt)` ([`ExplicitParams::damping`] = `c`,
+//! 1/s), per free vertex:
+//! - **symplectic Euler** (default): `v' = (v + dt a) decay`, `x' = x + dt v'` (the position
+//!   uses the new, damped velocity, as the peer implementations do);
+//! - **forward Euler** (Algorithm I as printed, line 9): `x' = x + dt v`, `v' = (v + dt a) decay`.
+//!
+//! Kinematic vertices follow their schedule; dynamic rigid bodies are advanced by the same
+//! scheme under gravity and the penalty reactions ([`crate::contact`]).
+//!
+//! Blow-up detection: the new positions and velocities are written into the stepper's own
+//! buffers and only swapped into the state when every value is finite; otherwise the step
+//! returns [`SolverError::NonFinite`] naming the step and the first bad vertex, and the state is
+//! left at the last good step.
+
+use fem_core::energy::Energy;
+use fem_core::math::{Real, Vec2};
+use rayon::prelude::*;
+
+use crate::contact::{ObstacleMotion, Wrench, accumulate_penalty_forces};
+use crate::error::{SolverError, check_non_negative, check_positive};
+use crate::kernel::{self, VERTEX_CHUNK};
+use crate::model::{Model, TimeStepCheck};
+use crate::report::StepReport;
+use crate::state::State;
+use crate::{Stepper, first_non_finite};
+
+/// Which explicit update.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum ExplicitScheme {
+    /// `x' = x + dt v'` (uses the new velocity). Default.
+    #[default]
+    SymplecticEuler,
+    /// `x' = x + dt v` (uses the old velocity): Algorithm I line 9 as printed.
+    ForwardEuler,
+}
+
+/// Parameters of [`ExplicitStepper`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ExplicitParams {
+    /// Time step, s (finite, > 0). Default `1e-3` (case A).
+    pub dt: Real,
+    /// Velocity damping rate `c`, 1/s (`v <- v exp(-c dt)` each step; finite, >= 0). Default 0.
+    pub damping: Real,
+    /// Update scheme. Default symplectic Euler.
+    pub scheme: ExplicitScheme,
+}
+
+impl Default for ExplicitParams {
+    fn default() -> Self {
+        ExplicitParams {
+            dt: 1e-3,
+            damping: 0.0,
+            scheme: ExplicitScheme::SymplecticEuler,
+        }
+    }
+}
+
+impl ExplicitParams {
+    /// Check every field.
+    pub fn validate(&self) -> Result<(), SolverError> {
+        check_positive("explicit.dt", self.dt)?;
+        check_non_negative("explicit.damping", self.damping)
+    }
+}
+
+/// The explicit stepper; owns its workspace (no allocation after the first step).
+#[derive(Clone, Debug)]
+pub struct ExplicitStepper {
+    params: ExplicitParams,
+    decay: Real,
+    n_triangles: usize,
+    check: TimeStepCheck,
+    f: Vec<Vec2>,
+    element_buf: Vec<[Vec2; 2]>,
+    x_new: Vec<Vec2>,
+    v_new: Vec<Vec2>,
+    wrenches: Vec<Wrench>,
+    bodies_new: Vec<crate::contact::BodyState>,
+}
+
+impl ExplicitStepper {
+    /// Validate the parameters and estimate the stability limit for `model` (see
+    /// [`ExplicitStepper::time_step_check`]).
+    pub fn new<E: Energy>(model: &Model<E>, params: ExplicitParams) -> Result<Self, SolverError> {
+        params.validate()?;
+        let n = model.mesh().n_vertices();
+        Ok(ExplicitStepper {
+            params,
+            decay: (-params.damping * params.dt).exp(),
+            n_triangles: model.mesh().n_triangles(),
+            check: model.check_time_step(params.dt),
+            f: vec![Vec2::zeros(); n],
+            element_buf: Vec::new(),
+            x_new: vec![Vec2::zeros(); n],
+            v_new: vec![Vec2::zeros(); n],
+            wrenches: vec![Wrench::default(); model.obstacles().len()],
+            bodies_new: Vec::new(),
+        })
+    }
+
+    /// The parameters.
+    pub fn params(&self) -> &ExplicitParams {
+        &self.params
+    }
+
+    /// The stability estimate made at construction; [`TimeStepCheck::warning`] is `Some` when
+    /// `dt` exceeds the critical time step.
+    pub fn time_step_check(&self) -> &TimeStepCheck {
+        &self.check
+    }
+
+    /// The elastic plus external plus contact forces of the last step (N), for inspection.
+    pub fn forces(&self) -> &[Vec2] {
+        &self.f
+    }
+}
+
+impl Stepper for ExplicitStepper {
+    fn dt(&self) -> Real {
+        self.params.dt
+    }
+
+    fn step<E: Energy>(
+        &mut self,
+        model: &Model<E>,
+        state: &mut State,
+    ) -> Result<StepReport, SolverError> {
+        if model.mesh().n_triangles() != self.n_triangles {
+            return Err(SolverError::ModelMismatch {
+                got: model.mesh().n_triangles(),
+                expected: self.n_triangles,
+            });
+        }
+        state.check_matches(model)?;
+        let n = state.x.len();
+        self.f.resize(n, Vec2::zeros());
+        self.x_new.resize(n, Vec2::zeros());
+        self.v_new.resize(n, Vec2::zeros());
+        self.wrenches
+            .resize(model.obstacles().len(), Wrench::default());
+        let (dt, t) = (self.params.dt, state.t);
+
+        let inv = kernel::forces(
+            model.energy(),
+            &model.elements,
+            model.mesh().adjacency(),
+            &state.x,
+            &mut self.f,
+            &mut self.element_buf,
+        );
+        for &(v, fe) in model.external_forces() {
+            self.f[v as usize] += fe;
+        }
+        let contacts = if model.has_contact() {
+            accumulate_penalty_forces(
+                model.ground(),
+                model.obstacles(),
+                model.contact_params(),
+                model.masses(),
+                &state.x,
+                &state.v,
+                &state.bodies,
+                &mut self.f,
+                &mut self.wrenches,
+            )
+        } else {
+            0
+        };
+
+        let all_finite = integrate(
+            self.params.scheme,
+            dt,
+            self.decay,
+            model.gravity(),
+            &state.x,
+            &state.v,
+            &self.f,
+            model.inverse_masses(),
+            &mut self.x_new,
+            &mut self.v_new,
+        );
+        model
+            .kinematics()
+            .apply(t, dt, &state.x, &mut self.x_new, &mut self.v_new);
+        if !all_finite {
+            if let Some(vertex) = first_non_finite(&self.x_new, &self.v_new) {
+                return Err(SolverError::NonFinite {
+                    step: state.step,
+                    time: t,
+                    vertex,
+                    x: self.x_new[vertex].x,
+                    y: self.x_new[vertex].y,
+                    vx: self.v_new[vertex].x,
+                    vy: self.v_new[vertex].y,
+                    inverted: inv.inverted,
+                    min_det_f: inv.min_det_f,
+                });
+            }
+        }
+        self.bodies_new.clone_from(&state.bodies);
+        for (o, (obs, body)) in model
+            .obstacles()
+            .iter()
+            .zip(self.bodies_new.iter_mut())
+            .enumerate()
+        {
+            match obs.motion() {
+                ObstacleMotion::Static => {}
+                ObstacleMotion::Kinematic { .. } => obs.advance_kinematic(body, t, dt),
+                ObstacleMotion::Dynamic { .. } => {
+                    let (im, ii) = obs.inverse_mass();
+                    let w = self.wrenches[o];
+                    let v_old = body.velocity;
+                    let om_old = body.angular_velocity;
+                    body.velocity += (w.force * im + model.gravity()) * dt;
+                    body.angular_velocity += w.torque * ii * dt;
+                    let (v_used, om_used) = match self.params.scheme {
+                        ExplicitScheme::SymplecticEuler => (body.velocity, body.angular_velocity),
+                        ExplicitScheme::ForwardEuler => (v_old, om_old),
+                    };
+                    body.position += v_used * dt;
+                    body.angle += om_used * dt;
+                }
+            }
+            if !body.is_finite() {
+                return Err(SolverError::NonFiniteBody {
+                    step: state.step,
+                    body: o,
+                });
+            }
+        }
+        std::mem::swap(&mut state.bodies, &mut self.bodies_new);
+        std::mem::swap(&mut state.x, &mut self.x_new);
+        std::mem::swap(&mut state.v, &mut self.v_new);
+        state.t += dt;
+        state.step += 1;
+        Ok(StepReport::explicit(inv.min_det_f, inv.inverted, contacts))
+    }
+}
+
+/// The per-vertex update into `x_new`, `v_new` (every vertex treated as free; the caller then
+/// overwrites kinematic ones). Returns whether every written value is finite. Parallel in
+/// fixed chunks; the arithmetic per vertex does not depend on the thread count.
+#[allow(clippy::too_many_arguments)]
+fn integrate(
+    scheme: ExplicitScheme,
+    dt: Real,
+    decay: Real,
+    g: Vec2,
+    x: &[Vec2],
+    v: &[Vec2],
+    f: &[Vec2],
+    w: &[Real],
+    x_new: &mut [Vec2],
+    v_new: &mut [Vec2],
+) -> bool {
+    let chunk =
+        |xn: &mut [Vec2], vn: &mut [Vec2], x: &[Vec2], v: &[Vec2], f: &[Vec2], w: &[Real]| {
+            let mut ok = true;
+            for i in 0..xn.len() {
+                let vi = v[i];
+                let v1 = (vi + (f[i] * w[i] + g) * dt) * decay;
+                let x1 = match scheme {
+                    ExplicitScheme::SymplecticEuler => x[i] + v1 * dt,
+                    ExplicitScheme::ForwardEuler => x[i] + vi * dt,
+                };
+                ok &= (x1.x + x1.y + v1.x + v1.y).is_finite();
+                xn[i] = x1;
+                vn[i] = v1;
+            }
+            ok
+        };
+    if rayon::current_num_threads() == 1 {
+        return chunk(x_new, v_new, x, v, f, w);
+    }
+    x_new
+        .par_chunks_mut(VERTEX_CHUNK)
+        .zip(v_new.par_chunks_mut(VERTEX_CHUNK))
+        .zip(x.par_chunks(VERTEX_CHUNK))
+        .zip(v.par_chunks(VERTEX_CHUNK))
+        .zip(f.par_chunks(VERTEX_CHUNK))
+        .zip(w.par_chunks(VERTEX_CHUNK))
+        .map(|(((((xn, vn), x), v), f), w)| chunk(xn, vn, x, v, f, w))
+        .reduce(|| true, |a, b| a && b)
+}

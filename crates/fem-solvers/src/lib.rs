@@ -1,0 +1,102 @@
+//! # fem-solvers: time stepping, boundary conditions and contact for 2D elastodynamics
+//!
+//! Pick this crate to advance a [`fem_core`] mesh in time with the paper's three frameworks
+//! (Sections 3.1-3.2): explicit FEM (Algorithm I), energy-based PBD (Eqs. 4-6) and energy-based
+//! XPBD (Algorithm II, Eq. 7), with pinned and prescribed vertices, gravity, nodal loads, a
+//! ground and rigid obstacles.
+//!
+//! The pieces, kept apart:
+//! - a [`Model`] (mesh, energy, lumped masses, boundary conditions, loads, obstacles): fixed
+//!   during a run;
+//! - a [`State`] (positions, velocities, rigid-body poses, time): what steps change;
+//! - steppers that advance a state by `dt` and return a [`StepReport`] (min det F, inverted
+//!   elements, iterations, constraint residual, contacts): [`ExplicitStepper`],
+//!   [`PbdStepper`], [`XpbdStepper`], all behind the [`Stepper`] trait.
+//!
+//! Also: the explicit stability guard ([`Model::check_time_step`]: smallest element height over
+//! the dilatational wave speed), blow-up detection (a step never writes non-finite values into
+//! the state; it returns [`SolverError::NonFinite`] naming the step and the first bad vertex),
+//! and energy diagnostics ([`diagnostics::energies`]).
+//!
+//! Architecture invariants:
+//! - **fem-solvers never names a concrete energy.** Models and steppers are generic over
+//!   [`fem_core::energy::Energy`]; only tests, benches and examples pick one.
+//! - **Every stepper gives bit-identical states for any number of rayon threads**: fixed work
+//!   chunks, element-order sums, no atomics, no hash maps (see [`kernel`](crate) docs in the
+//!   source and the `determinism` tests).
+//! - **Hot loops do not allocate**: steppers own their workspace, sized on construction or on
+//!   the first step.
+//!
+//! Units are SI per unit thickness (plane strain or plane stress is decided where the energy's
+//! Lamé parameters are built). Conventions where the paper's printed text is ambiguous or
+//! departs from standard practice (symplectic Euler by default, damping `v <- v exp(-c dt)`, the
+//! consistent XPBD constraint `C = sqrt(2 a psi)`) are documented in each stepper's module.
+//!
+//! What this crate does not know: meshing, file formats, scenes and the command line (those
+//! live in `fem-mesh` and `fem-cases`), and which energy a run uses.
+//!
+//! ```
+//! use fem_core::{energy::NeoHookean, material::Material, PlaneModel};
+//! use fem_solvers::{testing::beam_mesh, ExplicitParams, ExplicitStepper, Model, Region, State, Stepper};
+//! use nalgebra::Vector2;
+//! let lame = Material::new(1000.0, 0.3, 1.0).unwrap().lame(PlaneModel::PlaneStrain);
+//! let mut model = Model::with_total_mass(beam_mesh(20, 4).unwrap(), NeoHookean::new(lame), 1.0)
+//!     .unwrap()
+//!     .with_standard_gravity();
+//! model.pin(&Region::in_box(Vector2::new(0.0, 0.0), Vector2::new(0.0, 1.0))).unwrap();
+//! let mut stepper = ExplicitStepper::new(&model, ExplicitParams { dt: 1e-3, damping: 1.0, ..Default::default() }).unwrap();
+//! assert!(stepper.time_step_check().warning().is_none());
+//! let mut state = State::at_rest(&model);
+//! for _ in 0..100 {
+//!     stepper.step(&model, &mut state).unwrap();
+//! }
+//! // After 0.1 s the tip has fallen about 1/2 g t^2 = 49 mm (paper Table 1, frame 10).
+//! let tip = state.displacement(&model, fem_solvers::testing::node_index(20, 0, 4));
+//! assert!((tip.y + 0.049).abs() < 0.003);
+//! ```
+
+pub mod bc;
+pub mod colour;
+pub mod contact;
+pub mod diagnostics;
+mod error;
+pub mod explicit;
+mod kernel;
+pub mod model;
+pub mod position_based;
+mod report;
+mod state;
+pub mod testing;
+
+use fem_core::energy::Energy;
+use fem_core::math::{Real, Vec2};
+
+pub use bc::{PrescribedMotion, Region};
+pub use contact::{BodyState, ContactParams, Ground, ObstacleMotion};
+pub use error::SolverError;
+pub use explicit::{ExplicitParams, ExplicitScheme, ExplicitStepper};
+pub use model::{Model, TimeStepCheck};
+pub use position_based::{Ordering, PbdParams, PbdStepper, XpbdForm, XpbdParams, XpbdStepper};
+pub use report::StepReport;
+pub use state::State;
+
+/// A time stepper: advances a [`State`] of a [`Model`] by its time step.
+pub trait Stepper {
+    /// The time step, s.
+    fn dt(&self) -> Real;
+
+    /// Advance `state` by one step of [`Stepper::dt`]. On error the state is unchanged (a
+    /// failed substep leaves the earlier substeps applied).
+    fn step<E: Energy>(
+        &mut self,
+        model: &Model<E>,
+        state: &mut State,
+    ) -> Result<StepReport, SolverError>;
+}
+
+/// The first vertex whose position or velocity is not finite.
+pub(crate) fn first_non_finite(x: &[Vec2], v: &[Vec2]) -> Option<usize> {
+    x.iter().zip(v).position(|(p, q)| {
+        !(p.x.is_finite() && p.y.is_finite() && q.x.is_finite() && q.y.is_finite())
+    })
+}

@@ -1,0 +1,338 @@
+//! The model: everything about a simulation that does not change while it runs (mesh, energy,
+//! lumped masses, boundary conditions, loads, obstacles), plus the stability guard.
+//!
+//! A model is built once and then passed by shared reference to a stepper's `step`, together
+//! with a mutable [`State`](crate::State). Every setter validates its input and returns a
+//! one-line [`SolverError`] naming the field and the value.
+
+use fem_core::energy::Energy;
+use fem_core::math::{Mat2, Real, Vec2};
+use fem_core::mesh::Mesh;
+
+use crate::bc::{Kinematics, PrescribedMotion, Region};
+use crate::contact::{ContactParams, Ground, Obstacle, ObstacleMotion};
+use crate::error::{SolverError, check_finite_vec, check_positive};
+use crate::kernel::{PackedElement, pack};
+
+/// Standard gravity used by [`Model::with_standard_gravity`], m/s^2 (the peers use 9.8).
+pub const STANDARD_GRAVITY: Real = 9.8;
+
+/// Mesh, energy, masses, boundary conditions, loads and obstacles of one simulation.
+///
+/// Generic over the energy: steppers monomorphise their kernels for `E`; the model never
+/// names a concrete energy.
+#[derive(Clone, Debug)]
+pub struct Model<E: Energy> {
+    mesh: Mesh,
+    energy: E,
+    masses: Vec<Real>,
+    inv_masses: Vec<Real>,
+    kinematics: Kinematics,
+    gravity: Vec2,
+    external_forces: Vec<(u32, Vec2)>,
+    ground: Option<Ground>,
+    obstacles: Vec<Obstacle>,
+    contact: ContactParams,
+    pub(crate) elements: Vec<PackedElement>,
+    modulus: Real,
+}
+
+impl<E: Energy> Model<E> {
+    /// A model with the given lumped vertex masses (kg per unit thickness, one per vertex,
+    /// finite and > 0), no gravity, no boundary conditions and no obstacles.
+    pub fn new(mesh: Mesh, energy: E, masses: Vec<Real>) -> Result<Self, SolverError> {
+        if masses.len() != mesh.n_vertices() {
+            return Err(SolverError::invalid(
+                "masses.len()",
+                masses.len(),
+                "must equal the number of mesh vertices",
+            ));
+        }
+        if let Some(i) = masses.iter().position(|m| !(m.is_finite() && *m > 0.0)) {
+            return Err(SolverError::invalid(
+                format!("masses[{i}]"),
+                masses[i],
+                "must be a finite number > 0 (kg)",
+            ));
+        }
+        let inv_masses = masses.iter().map(|m| 1.0 / m).collect();
+        // P-wave modulus of the linearised energy: d^2 psi / d F00^2 at F = I (lambda + 2 mu
+        // for every isotropic energy that linearises to linear elasticity).
+        let modulus = energy.dpk1(&Mat2::identity())[(0, 0)];
+        if !(modulus.is_finite() && modulus > 0.0) {
+            return Err(SolverError::invalid(
+                "energy.dpk1(I)[0][0]",
+                modulus,
+                "the energy's rest stiffness must be finite and > 0",
+            ));
+        }
+        Ok(Model {
+            elements: pack(&mesh),
+            mesh,
+            energy,
+            masses,
+            inv_masses,
+            kinematics: Kinematics::default(),
+            gravity: Vec2::zeros(),
+            external_forces: Vec::new(),
+            ground: None,
+            obstacles: Vec::new(),
+            contact: ContactParams::default(),
+            modulus,
+        })
+    }
+
+    /// Masses from a total mass (kg per unit thickness) spread with uniform density.
+    pub fn with_total_mass(mesh: Mesh, energy: E, total_mass: Real) -> Result<Self, SolverError> {
+        check_positive("total_mass", total_mass)?;
+        let m = mesh
+            .lumped_masses_from_total_mass(total_mass)
+            .map_err(|_| {
+                SolverError::invalid("total_mass", total_mass, "must be a finite number > 0 (kg)")
+            })?;
+        Self::new(mesh, energy, m)
+    }
+
+    /// Masses from a density (kg/m^3 with unit thickness).
+    pub fn with_density(mesh: Mesh, energy: E, density: Real) -> Result<Self, SolverError> {
+        check_positive("density", density)?;
+        let m = mesh.lumped_masses_from_density(density).map_err(|_| {
+            SolverError::invalid("density", density, "must be a finite number > 0 (kg/m^3)")
+        })?;
+        Self::new(mesh, energy, m)
+    }
+
+    /// Set the gravitational acceleration (m/s^2, a vector; `[0, -9.8]` points down).
+    pub fn set_gravity(&mut self, g: Vec2) -> Result<&mut Self, SolverError> {
+        check_finite_vec("gravity", g)?;
+        self.gravity = g;
+        Ok(self)
+    }
+
+    /// Gravity `[0, -9.8]` m/s^2.
+    pub fn with_standard_gravity(mut self) -> Self {
+        self.gravity = Vec2::new(0.0, -STANDARD_GRAVITY);
+        self
+    }
+
+    /// Pin the vertices of `region` (zero velocity for the whole run).
+    pub fn pin(&mut self, region: &Region) -> Result<&mut Self, SolverError> {
+        let list = region.select(self.mesh.vertices(), "pinned")?;
+        self.kinematics.assign(&list, None);
+        self.refresh_inverse_masses();
+        Ok(self)
+    }
+
+    /// Move the vertices of `motion.region` on a schedule (see [`PrescribedMotion`]).
+    pub fn add_prescribed_motion(
+        &mut self,
+        motion: PrescribedMotion,
+    ) -> Result<&mut Self, SolverError> {
+        let field = format!("prescribed_motion[{}]", self.kinematics.motions.len());
+        motion.validate(&field)?;
+        let list = motion.region.select(self.mesh.vertices(), &field)?;
+        let id = self.kinematics.motions.len() as u32;
+        self.kinematics.motions.push(motion);
+        self.kinematics.assign(&list, Some(id));
+        self.refresh_inverse_masses();
+        Ok(self)
+    }
+
+    /// Add a constant external nodal force (N per unit thickness) on `vertex`.
+    pub fn add_external_force(
+        &mut self,
+        vertex: usize,
+        force: Vec2,
+    ) -> Result<&mut Self, SolverError> {
+        let field = format!("external_forces[{}]", self.external_forces.len());
+        if vertex >= self.mesh.n_vertices() {
+            return Err(SolverError::VertexOutOfRange {
+                field,
+                index: vertex,
+                n_vertices: self.mesh.n_vertices(),
+            });
+        }
+        check_finite_vec(&field, force)?;
+        self.external_forces.push((vertex as u32, force));
+        Ok(self)
+    }
+
+    /// Set (or, with `None`, remove) the ground half-space.
+    pub fn set_ground(&mut self, ground: Option<Ground>) -> Result<&mut Self, SolverError> {
+        self.ground = ground.map(Ground::validated).transpose()?;
+        Ok(self)
+    }
+
+    /// Add a rigid polygonal obstacle (counter-clockwise world polygon at `t = 0`); returns its
+    /// index, which is also its index in [`State::bodies`](crate::State::bodies).
+    pub fn add_obstacle(
+        &mut self,
+        polygon: &[Vec2],
+        motion: ObstacleMotion,
+    ) -> Result<usize, SolverError> {
+        let index = self.obstacles.len();
+        self.obstacles.push(Obstacle::new(index, polygon, motion)?);
+        Ok(index)
+    }
+
+    /// Set the penalty contact parameters.
+    pub fn set_contact_params(&mut self, params: ContactParams) -> Result<&mut Self, SolverError> {
+        params.validate()?;
+        self.contact = params;
+        Ok(self)
+    }
+
+    fn refresh_inverse_masses(&mut self) {
+        for (w, m) in self.inv_masses.iter_mut().zip(&self.masses) {
+            *w = 1.0 / m;
+        }
+        for v in self.kinematics.vertices() {
+            self.inv_masses[v] = 0.0;
+        }
+    }
+
+    /// The mesh.
+    pub fn mesh(&self) -> &Mesh {
+        &self.mesh
+    }
+
+    /// The energy.
+    pub fn energy(&self) -> &E {
+        &self.energy
+    }
+
+    /// Lumped vertex masses, kg.
+    pub fn masses(&self) -> &[Real] {
+        &self.masses
+    }
+
+    /// Inverse masses, 1/kg; zero for kinematic (pinned or prescribed) vertices.
+    pub fn inverse_masses(&self) -> &[Real] {
+        &self.inv_masses
+    }
+
+    /// Pinned and prescribed vertices.
+    pub fn kinematics(&self) -> &Kinematics {
+        &self.kinematics
+    }
+
+    /// Gravitational acceleration, m/s^2.
+    pub fn gravity(&self) -> Vec2 {
+        self.gravity
+    }
+
+    /// External nodal forces `(vertex, force)`, in the order they were added.
+    pub fn external_forces(&self) -> &[(u32, Vec2)] {
+        &self.external_forces
+    }
+
+    /// The ground, if any.
+    pub fn ground(&self) -> Option<&Ground> {
+        self.ground.as_ref()
+    }
+
+    /// The obstacles.
+    pub fn obstacles(&self) -> &[Obstacle] {
+        &self.obstacles
+    }
+
+    /// Penalty contact parameters.
+    pub fn contact_params(&self) -> &ContactParams {
+        &self.contact
+    }
+
+    /// Whether any contact geometry exists.
+    pub fn has_contact(&self) -> bool {
+        self.ground.is_some() || !self.obstacles.is_empty()
+    }
+
+    /// The P-wave modulus of the linearised energy at rest, Pa (`lambda + 2 mu`).
+    pub fn p_wave_modulus(&self) -> Real {
+        self.modulus
+    }
+
+    /// The explicit critical time step of the elastic body, s: the minimum over elements of
+    /// the smallest element height `2 a / (longest edge)` divided by the dilatational wave
+    /// speed `sqrt(M / rho_e)`, with `M` the P-wave modulus ([`Model::p_wave_modulus`]) and
+    /// `rho_e` the element's density seen by its lightest vertex (vertex mass over a third of
+    /// the area around it). It is the linearised bound at rest: large deformations (StVK under
+    /// compression) can need less.
+    pub fn elastic_critical_time_step(&self) -> Real {
+        let nv = self.mesh.n_vertices();
+        let mut area_around = vec![0.0; nv];
+        for el in &self.elements {
+            for &i in &el.idx {
+                area_around[i as usize] += el.area / 3.0;
+            }
+        }
+        let x = self.mesh.vertices();
+        let mut dt: Real = Real::INFINITY;
+        for el in &self.elements {
+            let [a, b, c] = el.idx.map(|i| i as usize);
+            let longest = (x[b] - x[a])
+                .norm()
+                .max((x[c] - x[b]).norm())
+                .max((x[a] - x[c]).norm());
+            let h = 2.0 * el.area / longest;
+            let rho = [a, b, c]
+                .iter()
+                .map(|&i| self.masses[i] / area_around[i])
+                .fold(Real::INFINITY, Real::min);
+            dt = dt.min(h / (self.modulus / rho).sqrt());
+        }
+        dt
+    }
+
+    /// Compare `dt` with the explicit stability limits: the elastic one and, when the model
+    /// has contact geometry, the penalty spring's ([`ContactParams::critical_time_step`]).
+    pub fn check_time_step(&self, dt: Real) -> TimeStepCheck {
+        let elastic = self.elastic_critical_time_step();
+        let contact = self
+            .has_contact()
+            .then(|| self.contact.critical_time_step());
+        TimeStepCheck {
+            dt,
+            elastic,
+            contact,
+        }
+    }
+}
+
+/// The explicit stability estimate for a time step (see [`Model::check_time_step`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TimeStepCheck {
+    /// The time step checked, s.
+    pub dt: Real,
+    /// Elastic critical time step, s.
+    pub elastic: Real,
+    /// Penalty-contact critical time step, s (when the model has contact geometry).
+    pub contact: Option<Real>,
+}
+
+impl TimeStepCheck {
+    /// The binding limit, s.
+    pub fn critical(&self) -> Real {
+        self.contact.map_or(self.elastic, |c| c.min(self.elastic))
+    }
+
+    /// `dt / critical`: above 1 the explicit stepper is expected to blow up.
+    pub fn ratio(&self) -> Real {
+        self.dt / self.critical()
+    }
+
+    /// A one-line warning when `dt` exceeds the limit, else `None`.
+    pub fn warning(&self) -> Option<String> {
+        (self.ratio() > 1.0).then(|| {
+            let which = match self.contact {
+                Some(c) if c < self.elastic => "penalty contact",
+                _ => "elastic",
+            };
+            format!(
+                "dt = {:e} s exceeds the explicit critical time step {:e} s ({which} limit, ratio {:.2}): expect the run to blow up",
+                self.dt,
+                self.critical(),
+                self.ratio()
+            )
+        })
+    }
+}

@@ -1,0 +1,836 @@
+//! Energy-based PBD (Bender, Koschier, Charrier & Weber 2014; paper Eqs. 4-6) and XPBD
+//! (Macklin, Müller & Chentanez 2016; paper Algorithm II and Eq. 7), one constraint per
+//! triangle, sharing one prediction / projection / velocity-update loop.
+//!
+//! Each (sub)step of length `h`: predict `v' = v + h (g + M^-1 f_ext)`, `x* = x + h v'`
+//! (Algorithm II lines 1-2); reset the multipliers; run `iterations` sweeps over the triangle
+//! constraints, each followed by contact projection; then `v = (x* - x) / h`, damped by
+//! `exp(-c h)` (lines 12-13).
+//!
+//! Per triangle with rest area `a` and vertices `j`, `grad_j psi_e = a P g_j` (the energy
+//! gradient of Eq. 4, with `g_j` the shape-function gradients) and `w_j = 1/m_j`:
+//! - **PBD**: `C = a psi(F)`, `s = -C / sum_j w_j |grad_j C|^2` (Eq. 5),
+//!   `dx_j = k w_j s grad_j C` (Eq. 6) with the stiffness `k` in `(0, 1]`. The response depends
+//!   on `dt` and on the iteration count: that is the paper's case C observation.
+//! - **XPBD, consistent form** (default): `C = sqrt(2 a psi)`, whose gradient is
+//!   `a P g_j / C`, and compliance `alpha~ = alpha / h^2` with `alpha` =
+//!   [`XpbdParams::compliance`] (default 1, dimensionless): the constraint energy
+//!   `C^2 / (2 alpha)` is then exactly the element's elastic energy `a psi`, so XPBD converges to
+//!   implicit Euler of the true energy as iterations grow.
+//! - **XPBD, literal form** (the paper's text): `C = a psi` with the same update. Then
+//!   `C^2 / (2 alpha)` is `(a psi)^2 / (2 alpha)`, quartic in the strain: `alpha` (units 1/J
+//!   per unit thickness) has no material meaning and the response depends on the mesh.
+//!
+//! Both: `dlambda = (-C - alpha~ lambda) / (sum_j w_j |grad_j C|^2 + alpha~)`,
+//! `dx_j = w_j grad_j C dlambda`, and `lambda` accumulates over the iterations of a (sub)step
+//! (reset to 0 at its start).
+//!
+//! **Rest threshold.** At rest `psi = 0` and `C = sqrt(2 a psi)` has no gradient direction
+//! (`0/0`); rounding makes `psi` noise of order `1e-16` times the modulus there. A constraint
+//! is skipped when `psi <= rest_threshold * M`, with `M` the P-wave modulus of the energy
+//! ([`Model::p_wave_modulus`]) and `rest_threshold` a named parameter (default `1e-14`, i.e.
+//! strains below about `1e-7`). A NaN `psi` is not skipped, so blow-ups surface.
+//!
+//! **Orderings** ([`Ordering`]): plain Gauss-Seidel in triangle order (serial); coloured
+//! Gauss-Seidel (triangles grouped by a greedy colouring, each colour projected in parallel;
+//! default); Jacobi (every constraint from the same positions, corrections averaged per vertex
+//! and scaled by a relaxation factor). Each gives bit-identical states for any thread count:
+//! within a colour no two constraints share a vertex, so parallel evaluation followed by
+//! application equals the in-place serial sweep, and Jacobi sums per vertex in element order.
+
+use fem_core::energy::Energy;
+use fem_core::math::{Real, Vec2};
+use fem_core::mesh::VertexAdjacency;
+use rayon::prelude::*;
+
+use crate::colour::Colouring;
+use crate::contact::{BodyState, ObstacleMotion, project_contacts};
+use crate::error::{SolverError, check_non_negative, check_positive};
+use crate::kernel::{
+    ELEMENT_CHUNK, Inversion, PackedElement, VERTEX_CHUNK, deformation_gradient, energy_gradients,
+};
+use crate::model::Model;
+use crate::report::StepReport;
+use crate::state::State;
+use crate::{Stepper, first_non_finite};
+
+/// The order in which triangle constraints are projected.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Ordering {
+    /// Gauss-Seidel in triangle index order (serial; the paper's loop).
+    GaussSeidel,
+    /// Gauss-Seidel by colour classes, each class in parallel. Default.
+    Coloured,
+    /// Jacobi: all constraints from the same positions; each vertex moves by `relaxation` times
+    /// the mean of its corrections.
+    Jacobi {
+        /// Relaxation factor, dimensionless, in `(0, 2)`. 1 is safe; larger converges faster.
+        relaxation: Real,
+    },
+}
+
+impl Default for Ordering {
+    fn default() -> Self {
+        Ordering::Coloured
+    }
+}
+
+impl Ordering {
+    fn validate(&self, prefix: &str) -> Result<(), SolverError> {
+        if let Ordering::Jacobi { relaxation } = *self {
+            if !(relaxation > 0.0 && relaxation < 2.0) {
+                return Err(SolverError::invalid(
+                    format!("{prefix}.ordering.relaxation"),
+                    relaxation,
+                    "must lie in the open interval (0, 2)",
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Parameters of [`PbdStepper`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PbdParams {
+    /// Time step, s (finite, > 0). Default `1e-3`.
+    pub dt: Real,
+    /// Substeps per step (>= 1); each substep is a full PBD step of `dt / substeps`. Default 1.
+    pub substeps: usize,
+    /// Constraint sweeps per substep (>= 1). Default 10.
+    pub iterations: usize,
+    /// PBD stiffness `k` in `(0, 1]`, dimensionless: the fraction of each projection applied.
+    /// Default 1.
+    pub stiffness: Real,
+    /// Velocity damping rate `c`, 1/s (`v <- v exp(-c h)` per substep). Default 0.
+    pub damping: Real,
+    /// Constraint ordering. Default coloured Gauss-Seidel.
+    pub ordering: Ordering,
+    /// Skip a constraint when `psi <= rest_threshold * M` (see the module docs),
+    /// dimensionless. Default `1e-14`.
+    pub rest_threshold: Real,
+}
+
+impl Default for PbdParams {
+    fn default() -> Self {
+        PbdParams {
+            dt: 1e-3,
+            substeps: 1,
+            iterations: 10,
+            stiffness: 1.0,
+            damping: 0.0,
+            ordering: Ordering::default(),
+            rest_threshold: 1e-14,
+        }
+    }
+}
+
+/// Which constraint function XPBD uses.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum XpbdForm {
+    /// `C = sqrt(2 a psi)`: compliance 1 reproduces the elastic energy. Default.
+    #[default]
+    Consistent,
+    /// `C = a psi`: the paper's text (compliance without material meaning).
+    Literal,
+}
+
+/// Parameters of [`XpbdStepper`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct XpbdParams {
+    /// Time step, s (finite, > 0). Default `1e-3`.
+    pub dt: Real,
+    /// Substeps per step (>= 1); each substep is a full XPBD step of `dt / substeps`. Default 1.
+    pub substeps: usize,
+    /// Constraint sweeps per substep (>= 1). Default 10.
+    pub iterations: usize,
+    /// Compliance `alpha` (finite, >= 0); `alpha~ = alpha / h^2`. Consistent form:
+    /// dimensionless, 1 = the material's own stiffness, 2 = twice as soft. Literal form: 1/J per
+    /// unit thickness. Default 1.
+    pub compliance: Real,
+    /// Constraint function. Default consistent.
+    pub form: XpbdForm,
+    /// Velocity damping rate `c`, 1/s (`v <- v exp(-c h)` per substep). Default 0.
+    pub damping: Real,
+    /// Constraint ordering. Default coloured Gauss-Seidel.
+    pub ordering: Ordering,
+    /// Skip a constraint when `psi <= rest_threshold * M` (see the module docs),
+    /// dimensionless. Default `1e-14`.
+    pub rest_threshold: Real,
+}
+
+impl Default for XpbdParams {
+    fn default() -> Self {
+        XpbdParams {
+            dt: 1e-3,
+            substeps: 1,
+            iterations: 10,
+            compliance: 1.0,
+            form: XpbdForm::Consistent,
+            damping: 0.0,
+            ordering: Ordering::default(),
+            rest_threshold: 1e-14,
+        }
+    }
+}
+
+fn check_count(field: &str, n: usize) -> Result<(), SolverError> {
+    if n >= 1 {
+        Ok(())
+    } else {
+        Err(SolverError::invalid(field, n, "must be at least 1"))
+    }
+}
+
+impl PbdParams {
+    /// Check every field.
+    pub fn validate(&self) -> Result<(), SolverError> {
+        check_positive("pbd.dt", self.dt)?;
+        check_count("pbd.substeps", self.substeps)?;
+        check_count("pbd.iterations", self.iterations)?;
+        if !(self.stiffness > 0.0 && self.stiffness <= 1.0) {
+            return Err(SolverError::invalid(
+                "pbd.stiffness",
+                self.stiffness,
+                "must lie in (0, 1]",
+            ));
+        }
+        check_non_negative("pbd.damping", self.damping)?;
+        check_non_negative("pbd.rest_threshold", self.rest_threshold)?;
+        self.ordering.validate("pbd")
+    }
+}
+
+impl XpbdParams {
+    /// Check every field.
+    pub fn validate(&self) -> Result<(), SolverError> {
+        check_positive("xpbd.dt", self.dt)?;
+        check_count("xpbd.substeps", self.substeps)?;
+        check_count("xpbd.iterations", self.iterations)?;
+        check_non_negative("xpbd.compliance", self.compliance)?;
+        check_non_negative("xpbd.damping", self.damping)?;
+        check_non_negative("xpbd.rest_threshold", self.rest_threshold)?;
+        self.ordering.validate("xpbd")
+    }
+}
+
+/// The projection rule with its per-substep constants.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Rule {
+    Pbd { stiffness: Real },
+    Consistent { alpha_tilde: Real },
+    Literal { alpha_tilde: Real },
+}
+
+/// What one constraint projection produced.
+#[derive(Clone, Copy, Debug)]
+struct Projection {
+    dx: [Vec2; 3],
+    active: bool,
+    det: Real,
+    residual2: Real,
+}
+
+/// Project one triangle constraint from positions `x` (read only); updates its multiplier.
+#[inline(always)]
+fn project_one<E: Energy>(
+    energy: &E,
+    el: &PackedElement,
+    x: &[Vec2],
+    w: &[Real],
+    rule: Rule,
+    psi_threshold: Real,
+    lambda: &mut Real,
+) -> Projection {
+    let f = deformation_gradient(el, x);
+    let det = f.determinant();
+    let skip = |residual2| Projection {
+        dx: [Vec2::zeros(); 3],
+        active: false,
+        det,
+        residual2,
+    };
+    let (psi, p) = energy.psi_pk1(&f);
+    if psi <= psi_threshold {
+        return skip(0.0);
+    }
+    let (g1, g2) = energy_gradients(el, &p);
+    let g0 = -(g1 + g2);
+    let [i0, i1, i2] = el.idx;
+    let (w0, w1, w2) = (w[i0 as usize], w[i1 as usize], w[i2 as usize]);
+    let s = w0 * g0.norm_squared() + w1 * g1.norm_squared() + w2 * g2.norm_squared();
+    let (m, residual2) = match rule {
+        Rule::Pbd { stiffness } => {
+            let c = el.area * psi;
+            if !(s > 0.0) && !s.is_nan() {
+                return skip(c * c);
+            }
+            (-stiffness * c / s, c * c)
+        }
+        Rule::Consistent { alpha_tilde } => {
+            if !(s > 0.0) && !s.is_nan() {
+                return skip(0.0);
+            }
+            let c = (2.0 * el.area * psi).sqrt();
+            let inv_c = 1.0 / c;
+            let r = c + alpha_tilde * *lambda;
+            let dl = -r / (s * inv_c * inv_c + alpha_tilde);
+            *lambda += dl;
+            (dl * inv_c, r * r)
+        }
+        Rule::Literal { alpha_tilde } => {
+            if !(s > 0.0) && !s.is_nan() {
+                return skip(0.0);
+            }
+            let c = el.area * psi;
+            let r = c + alpha_tilde * *lambda;
+            let dl = -r / (s + alpha_tilde);
+            *lambda += dl;
+            (dl, r * r)
+        }
+    };
+    Projection {
+        dx: [g0 * (w0 * m), g1 * (w1 * m), g2 * (w2 * m)],
+        active: true,
+        det,
+        residual2,
+    }
+}
+
+/// Statistics of one sweep, accumulated per fixed chunk so sums do not depend on threads.
+#[derive(Clone, Copy, Debug)]
+struct SweepStats {
+    inv: Inversion,
+    residual2: Real,
+}
+
+impl SweepStats {
+    const EMPTY: SweepStats = SweepStats {
+        inv: Inversion::EMPTY,
+        residual2: 0.0,
+    };
+
+    #[inline(always)]
+    fn add(&mut self, p: &Projection) {
+        self.inv.add(p.det);
+        self.residual2 += p.residual2;
+    }
+
+    fn merge(&mut self, other: &SweepStats) {
+        self.inv = Inversion::merge(self.inv, other.inv);
+        self.residual2 += other.residual2;
+    }
+}
+
+#[inline(always)]
+fn apply(x: &mut [Vec2], el: &PackedElement, p: &Projection) {
+    if p.active {
+        let [i0, i1, i2] = el.idx;
+        x[i0 as usize] += p.dx[0];
+        x[i1 as usize] += p.dx[1];
+        x[i2 as usize] += p.dx[2];
+    }
+}
+
+/// The shared position-based engine.
+#[derive(Clone, Debug)]
+struct Engine {
+    dt: Real,
+    substeps: usize,
+    iterations: usize,
+    damping: Real,
+    rest_threshold: Real,
+    ordering: Ordering,
+    /// Kind of rule with the compliance / stiffness before scaling by `h`.
+    rule: Rule,
+    n_triangles: usize,
+    /// Elements in sweep order (coloured order for [`Ordering::Coloured`], else triangle
+    /// order) and the colour ranges into it (one range for the other orderings).
+    elements: Vec<PackedElement>,
+    ranges: Vec<(usize, usize)>,
+    n_colours: usize,
+    lambda: Vec<Real>,
+    x_pred: Vec<Vec2>,
+    v_new: Vec<Vec2>,
+    corrections: Vec<Projection>,
+    chunk_stats: Vec<SweepStats>,
+    inv_adjacent: Vec<Real>,
+    bodies_pred: Vec<BodyState>,
+}
+
+impl Engine {
+    #[allow(clippy::too_many_arguments)]
+    fn new<E: Energy>(
+        model: &Model<E>,
+        dt: Real,
+        substeps: usize,
+        iterations: usize,
+        damping: Real,
+        rest_threshold: Real,
+        ordering: Ordering,
+        rule: Rule,
+    ) -> Self {
+        let mesh = model.mesh();
+        let (elements, ranges, n_colours) = match ordering {
+            Ordering::Coloured => {
+                let c = Colouring::greedy(mesh);
+                let els = c
+                    .order
+                    .iter()
+                    .map(|&t| model.elements[t as usize])
+                    .collect();
+                let ranges = c.offsets.windows(2).map(|w| (w[0], w[1])).collect();
+                (els, ranges, c.n_colours())
+            }
+            _ => (model.elements.clone(), vec![(0, model.elements.len())], 1),
+        };
+        let inv_adjacent = (0..mesh.n_vertices())
+            .map(|v| 1.0 / mesh.adjacency().of(v).len() as Real)
+            .collect();
+        Engine {
+            dt,
+            substeps,
+            iterations,
+            damping,
+            rest_threshold,
+            ordering,
+            rule,
+            n_triangles: mesh.n_triangles(),
+            elements,
+            ranges,
+            n_colours,
+            lambda: Vec::new(),
+            x_pred: Vec::new(),
+            v_new: Vec::new(),
+            corrections: Vec::new(),
+            chunk_stats: Vec::new(),
+            inv_adjacent,
+            bodies_pred: Vec::new(),
+        }
+    }
+
+    fn rule_for(&self, h: Real) -> Rule {
+        match self.rule {
+            Rule::Pbd { stiffness } => Rule::Pbd { stiffness },
+            Rule::Consistent { alpha_tilde } => Rule::Consistent {
+                alpha_tilde: alpha_tilde / (h * h),
+            },
+            Rule::Literal { alpha_tilde } => Rule::Literal {
+                alpha_tilde: alpha_tilde / (h * h),
+            },
+        }
+    }
+
+    fn step<E: Energy>(
+        &mut self,
+        model: &Model<E>,
+        state: &mut State,
+    ) -> Result<StepReport, SolverError> {
+        if model.mesh().n_triangles() != self.n_triangles {
+            return Err(SolverError::ModelMismatch {
+                got: model.mesh().n_triangles(),
+                expected: self.n_triangles,
+            });
+        }
+        state.check_matches(model)?;
+        let h = self.dt / self.substeps as Real;
+        let mut report = StepReport::explicit(Real::INFINITY, 0, 0);
+        for _ in 0..self.substeps {
+            let r = self.substep(model, state, h)?;
+            report = StepReport {
+                iterations: report.iterations + r.iterations,
+                ..r
+            };
+        }
+        state.step += 1;
+        Ok(report)
+    }
+
+    fn substep<E: Energy>(
+        &mut self,
+        model: &Model<E>,
+        state: &mut State,
+        h: Real,
+    ) -> Result<StepReport, SolverError> {
+        let n = state.x.len();
+        let w = model.inverse_masses();
+        let g = model.gravity();
+        let t = state.t;
+        self.x_pred.resize(n, Vec2::zeros());
+        self.v_new.resize(n, Vec2::zeros());
+        self.lambda.clear();
+        self.lambda.resize(self.elements.len(), 0.0);
+
+        // Prediction (Algorithm II, lines 1-2).
+        for i in 0..n {
+            self.v_new[i] = if w[i] > 0.0 {
+                state.v[i] + g * h
+            } else {
+                state.v[i]
+            };
+        }
+        for &(v, fe) in model.external_forces() {
+            let v = v as usize;
+            self.v_new[v] += fe * (w[v] * h);
+        }
+        for i in 0..n {
+            self.x_pred[i] = state.x[i] + self.v_new[i] * h;
+        }
+        model
+            .kinematics()
+            .apply(t, h, &state.x, &mut self.x_pred, &mut self.v_new);
+        self.bodies_pred.clone_from(&state.bodies);
+        for (obs, body) in model.obstacles().iter().zip(self.bodies_pred.iter_mut()) {
+            match obs.motion() {
+                ObstacleMotion::Static => {}
+                ObstacleMotion::Kinematic { .. } => obs.advance_kinematic(body, t, h),
+                ObstacleMotion::Dynamic { .. } => {
+                    body.velocity += g * h;
+                    body.position += body.velocity * h;
+                    body.angle += body.angular_velocity * h;
+                }
+            }
+        }
+
+        // Constraint sweeps (lines 3-11).
+        let rule = self.rule_for(h);
+        let psi_threshold = self.rest_threshold * model.p_wave_modulus();
+        let mut stats = SweepStats::EMPTY;
+        let mut contacts = 0;
+        for _ in 0..self.iterations {
+            stats = self.sweep(
+                model.energy(),
+                model.mesh().adjacency(),
+                w,
+                rule,
+                psi_threshold,
+            );
+            if model.has_contact() {
+                contacts = project_contacts(
+                    model.ground(),
+                    model.obstacles(),
+                    w,
+                    &mut self.x_pred,
+                    &mut self.bodies_pred,
+                );
+            }
+        }
+
+        // Velocities (lines 12-13).
+        let decay = (-self.damping * h).exp();
+        let mut all_finite = true;
+        for i in 0..n {
+            let v = (self.x_pred[i] - state.x[i]) * (decay / h);
+            all_finite &= (v.x + v.y + self.x_pred[i].x + self.x_pred[i].y).is_finite();
+            self.v_new[i] = v;
+        }
+        model
+            .kinematics()
+            .apply(t, h, &state.x, &mut self.x_pred, &mut self.v_new);
+        if !all_finite {
+            if let Some(vertex) = first_non_finite(&self.x_pred, &self.v_new) {
+                return Err(SolverError::NonFinite {
+                    step: state.step,
+                    time: t,
+                    vertex,
+                    x: self.x_pred[vertex].x,
+                    y: self.x_pred[vertex].y,
+                    vx: self.v_new[vertex].x,
+                    vy: self.v_new[vertex].y,
+                    inverted: stats.inv.inverted,
+                    min_det_f: stats.inv.min_det_f,
+                });
+            }
+        }
+        for (o, (obs, (pred, body))) in model
+            .obstacles()
+            .iter()
+            .zip(self.bodies_pred.iter_mut().zip(&state.bodies))
+            .enumerate()
+        {
+            if let ObstacleMotion::Dynamic { .. } = obs.motion() {
+                pred.velocity = (pred.position - body.position) / h;
+                pred.angular_velocity = (pred.angle - body.angle) / h;
+            }
+            if !pred.is_finite() {
+                return Err(SolverError::NonFiniteBody {
+                    step: state.step,
+                    body: o,
+                });
+            }
+        }
+        std::mem::swap(&mut state.x, &mut self.x_pred);
+        std::mem::swap(&mut state.v, &mut self.v_new);
+        std::mem::swap(&mut state.bodies, &mut self.bodies_pred);
+        state.t += h;
+        Ok(StepReport {
+            min_det_f: stats.inv.min_det_f,
+            inverted: stats.inv.inverted,
+            iterations: self.iterations,
+            residual: stats.residual2.sqrt(),
+            contacts,
+        })
+    }
+
+    /// One sweep over all constraints in the configured order.
+    fn sweep<E: Energy>(
+        &mut self,
+        energy: &E,
+        adjacency: &VertexAdjacency,
+        w: &[Real],
+        rule: Rule,
+        psi_threshold: Real,
+    ) -> SweepStats {
+        let parallel = rayon::current_num_threads() > 1;
+        let mut total = SweepStats::EMPTY;
+        match self.ordering {
+            Ordering::GaussSeidel => {
+                serial_range(
+                    energy,
+                    &self.elements,
+                    &mut self.lambda,
+                    &mut self.x_pred,
+                    w,
+                    rule,
+                    psi_threshold,
+                    &mut total,
+                );
+            }
+            Ordering::Coloured => {
+                for &(a, b) in &self.ranges {
+                    let els = &self.elements[a..b];
+                    let lam = &mut self.lambda[a..b];
+                    if parallel {
+                        self.chunk_stats.clear();
+                        self.chunk_stats
+                            .resize(els.len().div_ceil(ELEMENT_CHUNK), SweepStats::EMPTY);
+                        fill_corrections(&mut self.corrections, els.len());
+                        let x: &[Vec2] = &self.x_pred;
+                        self.corrections[..els.len()]
+                            .par_chunks_mut(ELEMENT_CHUNK)
+                            .zip(lam.par_chunks_mut(ELEMENT_CHUNK))
+                            .zip(els.par_chunks(ELEMENT_CHUNK))
+                            .zip(self.chunk_stats.par_iter_mut())
+                            .for_each(|(((out, lam), els), st)| {
+                                for ((o, l), el) in out.iter_mut().zip(lam).zip(els) {
+                                    *o = project_one(energy, el, x, w, rule, psi_threshold, l);
+                                    st.add(o);
+                                }
+                            });
+                        for (el, p) in els.iter().zip(&self.corrections) {
+                            apply(&mut self.x_pred, el, p);
+                        }
+                        for st in &self.chunk_stats {
+                            total.merge(st);
+                        }
+                    } else {
+                        serial_range(
+                            energy,
+                            els,
+                            lam,
+                            &mut self.x_pred,
+                            w,
+                            rule,
+                            psi_threshold,
+                            &mut total,
+                        );
+                    }
+                }
+            }
+            Ordering::Jacobi { relaxation } => {
+                let els = &self.elements[..];
+                let nc = els.len().div_ceil(ELEMENT_CHUNK);
+                self.chunk_stats.clear();
+                self.chunk_stats.resize(nc, SweepStats::EMPTY);
+                fill_corrections(&mut self.corrections, els.len());
+                let x: &[Vec2] = &self.x_pred;
+                let body =
+                    |((out, lam), els): ((&mut [Projection], &mut [Real]), &[PackedElement]),
+                     st: &mut SweepStats| {
+                        for ((o, l), el) in out.iter_mut().zip(lam).zip(els) {
+                            *o = project_one(energy, el, x, w, rule, psi_threshold, l);
+                            st.add(o);
+                        }
+                    };
+                let corr = &mut self.corrections[..els.len()];
+                if parallel {
+                    corr.par_chunks_mut(ELEMENT_CHUNK)
+                        .zip(self.lambda.par_chunks_mut(ELEMENT_CHUNK))
+                        .zip(els.par_chunks(ELEMENT_CHUNK))
+                        .zip(self.chunk_stats.par_iter_mut())
+                        .for_each(|(a, st)| body(a, st));
+                } else {
+                    corr.chunks_mut(ELEMENT_CHUNK)
+                        .zip(self.lambda.chunks_mut(ELEMENT_CHUNK))
+                        .zip(els.chunks(ELEMENT_CHUNK))
+                        .zip(self.chunk_stats.iter_mut())
+                        .for_each(|(a, st)| body(a, st));
+                }
+                for st in &self.chunk_stats {
+                    total.merge(st);
+                }
+                // Gather per vertex in element order (adjacency is sorted by element).
+                let corr = &self.corrections[..];
+                let inv_adj = &self.inv_adjacent;
+                let gather = |c: usize, xs: &mut [Vec2]| {
+                    for (k, xv) in xs.iter_mut().enumerate() {
+                        let v = c * VERTEX_CHUNK + k;
+                        let mut s = Vec2::zeros();
+                        for &(e, corner) in adjacency.of(v) {
+                            let p = &corr[e as usize];
+                            if p.active {
+                                s += p.dx[corner as usize];
+                            }
+                        }
+                        *xv += s * (relaxation * inv_adj[v]);
+                    }
+                };
+                if parallel {
+                    self.x_pred
+                        .par_chunks_mut(VERTEX_CHUNK)
+                        .enumerate()
+                        .for_each(|(c, xs)| gather(c, xs));
+                } else {
+                    self.x_pred
+                        .chunks_mut(VERTEX_CHUNK)
+                        .enumerate()
+                        .for_each(|(c, xs)| gather(c, xs));
+                }
+            }
+        }
+        total
+    }
+}
+
+fn fill_corrections(buf: &mut Vec<Projection>, n: usize) {
+    if buf.len() < n {
+        buf.resize_with(n, || Projection {
+            dx: [Vec2::zeros(); 3],
+            active: false,
+            det: 0.0,
+            residual2: 0.0,
+        });
+    }
+}
+
+/// In-place Gauss-Seidel over `els` (with multipliers `lam`), statistics accumulated per chunk
+/// of [`ELEMENT_CHUNK`] elements exactly as the parallel coloured path does.
+#[allow(clippy::too_many_arguments)]
+fn serial_range<E: Energy>(
+    energy: &E,
+    els: &[PackedElement],
+    lam: &mut [Real],
+    x: &mut [Vec2],
+    w: &[Real],
+    rule: Rule,
+    psi_threshold: Real,
+    total: &mut SweepStats,
+) {
+    for (els, lam) in els.chunks(ELEMENT_CHUNK).zip(lam.chunks_mut(ELEMENT_CHUNK)) {
+        let mut st = SweepStats::EMPTY;
+        for (el, l) in els.iter().zip(lam) {
+            let p = project_one(energy, el, x, w, rule, psi_threshold, l);
+            st.add(&p);
+            apply(x, el, &p);
+        }
+        total.merge(&st);
+    }
+}
+
+macro_rules! position_based_stepper {
+    ($name:ident, $params:ty, $doc:literal) => {
+        #[doc = $doc]
+        #[derive(Clone, Debug)]
+        pub struct $name {
+            params: $params,
+            engine: Engine,
+        }
+
+        impl $name {
+            /// The parameters.
+            pub fn params(&self) -> &$params {
+                &self.params
+            }
+
+            /// Number of colour classes of the coloured ordering (1 for the others).
+            pub fn n_colours(&self) -> usize {
+                self.engine.n_colours
+            }
+        }
+
+        impl Stepper for $name {
+            fn dt(&self) -> Real {
+                self.params.dt
+            }
+
+            fn step<E: Energy>(
+                &mut self,
+                model: &Model<E>,
+                state: &mut State,
+            ) -> Result<StepReport, SolverError> {
+                self.engine.step(model, state)
+            }
+        }
+    };
+}
+
+position_based_stepper!(
+    PbdStepper,
+    PbdParams,
+    "Energy-based PBD (Bender et al. 2014), one `C = a psi` constraint per triangle."
+);
+position_based_stepper!(
+    XpbdStepper,
+    XpbdParams,
+    "Energy-based XPBD (paper Algorithm II), consistent `C = sqrt(2 a psi)` by default."
+);
+
+impl PbdStepper {
+    /// Validate the parameters and prepare the sweep order (colouring) for `model`.
+    pub fn new<E: Energy>(model: &Model<E>, params: PbdParams) -> Result<Self, SolverError> {
+        params.validate()?;
+        Ok(PbdStepper {
+            engine: Engine::new(
+                model,
+                params.dt,
+                params.substeps,
+                params.iterations,
+                params.damping,
+                params.rest_threshold,
+                params.ordering,
+                Rule::Pbd {
+                    stiffness: params.stiffness,
+                },
+            ),
+            params,
+        })
+    }
+}
+
+impl XpbdStepper {
+    /// Validate the parameters and prepare the sweep order (colouring) for `model`.
+    pub fn new<E: Energy>(model: &Model<E>, params: XpbdParams) -> Result<Self, SolverError> {
+        params.validate()?;
+        let rule = match params.form {
+            XpbdForm::Consistent => Rule::Consistent {
+                alpha_tilde: params.compliance,
+            },
+            XpbdForm::Literal => Rule::Literal {
+                alpha_tilde: params.compliance,
+            },
+        };
+        Ok(XpbdStepper {
+            engine: Engine::new(
+                model,
+                params.dt,
+                params.substeps,
+                params.iterations,
+                params.damping,
+                params.rest_threshold,
+                params.ordering,
+                rule,
+            ),
+            params,
+        })
+    }
+}

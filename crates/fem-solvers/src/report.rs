@@ -1,0 +1,33 @@
+//! What a step reports (steppers never print).
+
+use fem_core::math::Real;
+
+/// Summary of one step.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StepReport {
+    /// Smallest `det F` over the elements, at the configuration the last force or constraint
+    /// pass evaluated (explicit: the start of the step; PBD/XPBD: the last iteration).
+    pub min_det_f: Real,
+    /// Elements with `det F <= 0` in that pass.
+    pub inverted: usize,
+    /// Constraint iterations performed (summed over substeps; 0 for explicit).
+    pub iterations: usize,
+    /// Constraint residual of the last iteration (0 for explicit): PBD `sqrt(sum C^2)`, XPBD
+    /// `sqrt(sum (C + alpha~ lambda)^2)`, both over the constraints evaluated in that
+    /// iteration, in the constraint's units.
+    pub residual: Real,
+    /// Vertex-obstacle contact pairs detected (in the last pass).
+    pub contacts: usize,
+}
+
+impl StepReport {
+    pub(crate) fn explicit(min_det_f: Real, inverted: usize, contacts: usize) -> Self {
+        StepReport {
+            min_det_f,
+            inverted,
+            iterations: 0,
+            residual: 0.0,
+            contacts,
+        }
+    }
+}

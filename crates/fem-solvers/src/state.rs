@@ -1,0 +1,91 @@
+//! The state a stepper advances: vertex positions and velocities, rigid-body poses, time.
+
+use fem_core::energy::Energy;
+use fem_core::math::{Real, Vec2};
+
+use crate::contact::BodyState;
+use crate::error::SolverError;
+use crate::model::Model;
+
+/// Positions, velocities and time of one simulation.
+#[derive(Clone, Debug, PartialEq)]
+pub struct State {
+    /// Vertex positions, m.
+    pub x: Vec<Vec2>,
+    /// Vertex velocities, m/s.
+    pub v: Vec<Vec2>,
+    /// One pose per obstacle of the model (static and kinematic ones too), in obstacle order.
+    pub bodies: Vec<BodyState>,
+    /// Time, s.
+    pub t: Real,
+    /// Number of steps taken.
+    pub step: u64,
+}
+
+impl State {
+    /// The model at rest in its reference configuration at `t = 0`.
+    pub fn at_rest<E: Energy>(model: &Model<E>) -> Self {
+        State {
+            x: model.mesh().vertices().to_vec(),
+            v: vec![Vec2::zeros(); model.mesh().n_vertices()],
+            bodies: model.obstacles().iter().map(BodyState::initial).collect(),
+            t: 0.0,
+            step: 0,
+        }
+    }
+
+    /// A state with the given positions and velocities at `t = 0` (bodies at rest at their
+    /// initial poses). Fails when the lengths do not match the model or a value is not finite.
+    pub fn new<E: Energy>(
+        model: &Model<E>,
+        x: Vec<Vec2>,
+        v: Vec<Vec2>,
+    ) -> Result<Self, SolverError> {
+        let s = State {
+            x,
+            v,
+            ..State::at_rest(model)
+        };
+        s.check_matches(model)?;
+        for (name, data) in [("x", &s.x), ("v", &s.v)] {
+            if let Some(i) = data
+                .iter()
+                .position(|p| !(p.x.is_finite() && p.y.is_finite()))
+            {
+                return Err(SolverError::invalid(
+                    format!("state.{name}[{i}]"),
+                    format!("[{}, {}]", data[i].x, data[i].y),
+                    "components must be finite",
+                ));
+            }
+        }
+        Ok(s)
+    }
+
+    /// Displacements `x - X` from the model's rest positions, m.
+    pub fn displacement<E: Energy>(&self, model: &Model<E>, vertex: usize) -> Vec2 {
+        self.x[vertex] - model.mesh().vertices()[vertex]
+    }
+
+    /// `Ok` when the state's sizes match the model.
+    pub fn check_matches<E: Energy>(&self, model: &Model<E>) -> Result<(), SolverError> {
+        let n = model.mesh().n_vertices();
+        for (what, got) in [("vertices", self.x.len()), ("velocities", self.v.len())] {
+            if got != n {
+                return Err(SolverError::StateMismatch {
+                    what,
+                    got,
+                    expected: n,
+                });
+            }
+        }
+        if self.bodies.len() != model.obstacles().len() {
+            return Err(SolverError::StateMismatch {
+                what: "bodies",
+                got: self.bodies.len(),
+                expected: model.obstacles().len(),
+            });
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,41 @@
+//! Shared set-up for the integration tests: the case A material and beam models.
+#![allow(dead_code)]
+
+use fem_core::PlaneModel;
+use fem_core::energy::Energy;
+use fem_core::material::{Lame, Material};
+use fem_core::math::{Real, Vec2};
+use fem_solvers::testing::beam_mesh;
+use fem_solvers::{Model, Region};
+
+/// Case A material: E = 1000 Pa, nu = 0.3, plane strain.
+pub fn case_a_lame() -> Lame {
+    Material::new(1000.0, 0.3, 1.0)
+        .unwrap()
+        .lame(PlaneModel::PlaneStrain)
+}
+
+/// Lamé parameters for Young's modulus `e` (Pa), nu = 0.3, plane strain.
+pub fn lame(e: Real) -> Lame {
+    Material::new(e, 0.3, 1.0)
+        .unwrap()
+        .lame(PlaneModel::PlaneStrain)
+}
+
+/// The case A beam with `nx` x `ny` cells, total mass 1 kg, no gravity, nothing pinned.
+pub fn free_beam<E: Energy>(energy: E, nx: usize, ny: usize) -> Model<E> {
+    Model::with_total_mass(beam_mesh(nx, ny).unwrap(), energy, 1.0).unwrap()
+}
+
+/// The case A cantilever: left edge pinned, standard gravity.
+pub fn cantilever<E: Energy>(energy: E, nx: usize, ny: usize) -> Model<E> {
+    let mut m = free_beam(energy, nx, ny).with_standard_gravity();
+    m.pin(&Region::in_box(Vec2::new(0.0, 0.0), Vec2::new(0.0, 1.0)))
+        .unwrap();
+    m
+}
+
+/// Bit patterns of a vector of points, for exact comparisons (`-0.0 != 0.0`, NaN == NaN).
+pub fn bits(x: &[Vec2]) -> Vec<[u64; 2]> {
+    x.iter().map(|p| [p.x.to_bits(), p.y.to_bits()]).collect()
+}

@@ -1,0 +1,5 @@
+//! The integration test suite of fem-solvers, one binary with a module per topic (one link
+//! instead of many): explicit stepping, PBD/XPBD, contact and thread determinism.
+
+mod common;
+mod explicit;
