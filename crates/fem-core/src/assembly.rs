@@ -4,10 +4,11 @@
 //! Every quantity has a plain serial reference path (`*_serial`: one loop over triangles in
 //! index order, scattering into the output) and a parallel path on the current rayon pool.
 //! Architecture invariant: **the parallel path is bit-identical to the serial one for any
-//! number of threads.** Elements are evaluated in parallel into a per-element buffer; each
-//! output entry is then summed from that buffer in increasing triangle order (the order the
-//! serial scatter adds in), starting from the same zero. No atomics, no thread-dependent
-//! reduction tree.
+//! number of threads**: every output entry sums the same terms in increasing triangle order
+//! from the same zero. Forces use the mesh's [`ScatterPlan`](crate::partition::ScatterPlan)
+//! (chunks scatter directly into the vertices they own, shared vertices go through slots);
+//! energy and stiffness evaluate elements in parallel into per-element buffers and sum them in
+//! triangle order. No atomics, no thread-dependent reduction tree.
 //!
 //! Hot paths do not allocate once their [`Scratch`] (and [`Stiffness`] pattern) has been sized
 //! by the first call.
@@ -18,11 +19,7 @@ use crate::element::Tri3;
 use crate::energy::Energy;
 use crate::math::{Mat2, Mat6, Real, Vec2};
 use crate::mesh::Mesh;
-
-/// Triangles per parallel task. Fixed, so the work split never depends on the thread count.
-const ELEMENT_CHUNK: usize = 2048;
-/// Vertices (or matrix rows) per parallel task in the gather.
-const VERTEX_CHUNK: usize = 2048;
+use crate::partition::{ELEMENT_CHUNK, Target, for_each_chunk};
 
 /// What one assembly pass saw, for step reports and inversion checks.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -57,7 +54,7 @@ impl AssemblyReport {
 /// it across steps; it grows to the mesh size on first use.
 #[derive(Clone, Debug, Default)]
 pub struct Scratch {
-    element_forces: Vec<[Vec2; 3]>,
+    slots: Vec<Vec2>,
     element_energies: Vec<Real>,
     element_stiffness: Vec<Mat6>,
 }
@@ -137,36 +134,36 @@ pub fn populate_forces<E: Energy>(
         return populate_forces_serial(mesh, energy, x, f);
     }
     check_len(mesh, x, "forces", f.len());
-    let buf = &mut scratch.element_forces;
-    buf.resize(mesh.n_triangles(), [Vec2::zeros(); 3]);
-    let report = buf
-        .par_chunks_mut(ELEMENT_CHUNK)
-        .zip(mesh.triangles().par_chunks(ELEMENT_CHUNK))
-        .zip(mesh.elements().par_chunks(ELEMENT_CHUNK))
-        .map(|((out, tris), els)| {
-            let mut r = AssemblyReport::EMPTY;
-            for ((o, tri), el) in out.iter_mut().zip(tris).zip(els) {
-                let (fe, j) = element_forces(energy, el, tri, x);
-                r.add(j);
-                *o = fe;
-            }
-            r
-        })
-        .reduce(|| AssemblyReport::EMPTY, AssemblyReport::merge);
-    let buf = &*buf;
-    let adj = mesh.adjacency();
-    f.par_chunks_mut(VERTEX_CHUNK)
-        .enumerate()
-        .for_each(|(c, fs)| {
-            for (k, fv) in fs.iter_mut().enumerate() {
-                let mut s = Vec2::zeros();
-                for &(e, corner) in adj.of(c * VERTEX_CHUNK + k) {
-                    s += buf[e as usize][corner as usize];
+    let plan = mesh.scatter_plan();
+    scratch.slots.resize(plan.n_slots(), Vec2::zeros());
+    let report = std::sync::Mutex::new(AssemblyReport::EMPTY);
+    for_each_chunk(plan, f, &mut scratch.slots, &|k, owned, slots| {
+        owned.fill(Vec2::zeros());
+        let base = plan.slot_range(k).start;
+        let range = k * ELEMENT_CHUNK..((k + 1) * ELEMENT_CHUNK).min(mesh.n_triangles());
+        let mut r = AssemblyReport::EMPTY;
+        for e in range {
+            let (fe, j) = element_forces(energy, &mesh.elements()[e], &mesh.triangles()[e], x);
+            r.add(j);
+            for (c, target) in plan.targets(e).into_iter().enumerate() {
+                match target {
+                    Target::Owned(i) => owned[i] += fe[c],
+                    Target::Shared(slot) => slots[slot - base] = fe[c],
                 }
-                *fv = s;
             }
-        });
-    report
+        }
+        // min and + on counts are exact, so merge order does not matter.
+        let mut total = report.lock().unwrap_or_else(|p| p.into_inner());
+        *total = AssemblyReport::merge(*total, r);
+    });
+    for (v, slots) in plan.shared() {
+        let mut s = Vec2::zeros();
+        for &slot in slots {
+            s += scratch.slots[slot as usize];
+        }
+        f[v] = s;
+    }
+    report.into_inner().unwrap_or_else(|p| p.into_inner())
 }
 
 /// Total elastic energy `sum_e a_e psi(F_e)` (J per unit thickness), summed in triangle order.

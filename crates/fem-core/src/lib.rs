@@ -10,6 +10,7 @@
 //!   `corotational`, `neo-hookean`, `stable-neo-hookean`, `linear`), each seeing only `F`.
 //! - [`element`]: the Tri3 element (`Dm^-1`, rest area, chain rule from `P` to nodal forces).
 //! - [`mesh`]: a validated mesh with rest data, adjacency and lumped masses.
+//! - [`partition`]: the chunking that makes the parallel scatter deterministic.
 //! - [`assembly`]: energy, forces and stiffness; serial reference and bit-identical parallel
 //!   paths.
 //! - [`stress`]: Cauchy, von Mises (formula stated) and principal stresses.
@@ -41,6 +42,7 @@ pub mod fd;
 pub mod material;
 pub mod math;
 pub mod mesh;
+pub mod partition;
 pub mod polar;
 pub mod stress;
 

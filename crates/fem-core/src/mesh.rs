@@ -8,6 +8,7 @@
 
 use crate::element::{ElementError, ElementTolerance, Tri3};
 use crate::math::{Real, Vec2};
+use crate::partition::ScatterPlan;
 
 /// Why a mesh is rejected.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
@@ -120,6 +121,7 @@ pub struct Mesh {
     triangles: Vec<[u32; 3]>,
     elements: Vec<Tri3>,
     adjacency: VertexAdjacency,
+    plan: ScatterPlan,
 }
 
 impl Mesh {
@@ -216,11 +218,13 @@ impl Mesh {
             return Err(MeshError::UnreferencedVertex(v));
         }
         let adjacency = VertexAdjacency::build(n, &triangles);
+        let plan = ScatterPlan::new(n, &triangles, &adjacency);
         Ok(Mesh {
             vertices,
             triangles,
             elements,
             adjacency,
+            plan,
         })
     }
 
@@ -242,6 +246,11 @@ impl Mesh {
     /// Vertex-to-triangle adjacency.
     pub fn adjacency(&self) -> &VertexAdjacency {
         &self.adjacency
+    }
+
+    /// The deterministic parallel scatter plan (see [`crate::partition`]).
+    pub fn scatter_plan(&self) -> &ScatterPlan {
+        &self.plan
     }
 
     /// Number of vertices.

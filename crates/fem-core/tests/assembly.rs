@@ -290,3 +290,46 @@ fn report_counts_inverted_elements() {
     assert_eq!(rep.inverted, expected);
     assert!(rep.min_det_f < 0.0);
 }
+
+/// A randomly renumbered mesh (vertices and triangles shuffled) defeats the chunk ownership, so
+/// most vertices go through the shared-slot path: still bit-identical to the serial loop.
+#[test]
+fn parallel_forces_on_a_shuffled_mesh_are_bit_identical_to_serial() {
+    let base = rectangle(5.0, 1.0, 60, 40, Diagonal::Alternating); // 4800 triangles, 3 chunks
+    let mut rng = Rng::new(12);
+    let n = base.n_vertices();
+    let mut perm: Vec<usize> = (0..n).collect();
+    for i in (1..n).rev() {
+        perm.swap(i, (rng.next_u64() % (i as u64 + 1)) as usize);
+    }
+    let mut vertices = vec![Vec2::zeros(); n];
+    for (old, &new) in perm.iter().enumerate() {
+        vertices[new] = base.vertices()[old];
+    }
+    let mut triangles: Vec<[u32; 3]> = base
+        .triangles()
+        .iter()
+        .map(|t| t.map(|v| perm[v as usize] as u32))
+        .collect();
+    for i in (1..triangles.len()).rev() {
+        triangles.swap(i, (rng.next_u64() % (i as u64 + 1)) as usize);
+    }
+    let mesh = Mesh::new(vertices, triangles).unwrap();
+    assert!(mesh.scatter_plan().shared_fraction(n) > 0.5);
+    let x = deformed(&mesh, &mut rng, 0.3);
+    let energy = EnergyKind::Corotational.build(lame()).unwrap();
+    let mut f_ref = vec![Vec2::zeros(); n];
+    populate_forces_serial(&mesh, &energy, &x, &mut f_ref);
+    for threads in [2, 4] {
+        let f = with_threads(threads, || {
+            let mut f = vec![Vec2::new(7.0, 7.0); n];
+            populate_forces(&mesh, &energy, &x, &mut f, &mut Scratch::new());
+            f
+        });
+        assert_eq!(
+            bits(&f),
+            bits(&f_ref),
+            "forces differ with {threads} threads"
+        );
+    }
+}
