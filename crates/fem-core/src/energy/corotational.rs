@@ -46,7 +46,10 @@ impl Energy for Corotational {
 
     #[inline]
     fn pk1(&self, f: &Mat2) -> Mat2 {
-        self.psi_pk1(f).1
+        let r = Polar2::new(f).rotation();
+        // tr(R^T F) - 2 = c (F00 + F11) + s (F10 - F01) - 2, written out to skip the product.
+        let t = r[(0, 0)] * (f[(0, 0)] + f[(1, 1)]) + r[(1, 0)] * (f[(1, 0)] - f[(0, 1)]) - 2.0;
+        (f - r) * (2.0 * self.mu) + r * (self.lambda * t)
     }
 
     #[inline]

@@ -53,7 +53,11 @@ impl Energy for NeoHookean {
 
     #[inline]
     fn pk1(&self, f: &Mat2) -> Mat2 {
-        self.psi_pk1(f).1
+        let j = f.determinant();
+        if j <= 0.0 {
+            return Mat2::from_element(Real::NAN);
+        }
+        f * self.mu + cofactor(f) * ((self.lambda * j.ln() - self.mu) / j)
     }
 
     #[inline]
@@ -63,10 +67,10 @@ impl Energy for NeoHookean {
             return (Real::INFINITY, Mat2::from_element(Real::NAN));
         }
         let lj = j.ln();
-        let f_inv_t = cofactor(f) / j;
         let psi =
             0.5 * self.mu * (f.norm_squared() - 2.0) - self.mu * lj + 0.5 * self.lambda * lj * lj;
-        let p = (f - f_inv_t) * self.mu + f_inv_t * (self.lambda * lj);
+        // P = mu F + (lambda log J - mu) F^-T, with F^-T = cof(F) / J: one division.
+        let p = f * self.mu + cofactor(f) * ((self.lambda * lj - self.mu) / j);
         (psi, p)
     }
 
