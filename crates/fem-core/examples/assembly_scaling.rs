@@ -9,32 +9,18 @@
 //! figure least disturbed by other work on the machine; criterion's `benches/assembly.rs`
 //! gives the full distributions.
 
+#[path = "../tests/common/mod.rs"]
+mod common;
+
 use std::time::Instant;
+
+use common::{Diagonal, rectangle};
 
 use fem_core::assembly::{Scratch, populate_forces};
 use fem_core::dispatch_energy;
 use fem_core::energy::EnergyKind;
 use fem_core::material::{Material, PlaneModel};
 use fem_core::math::Vec2;
-use fem_core::mesh::Mesh;
-
-fn beam(nx: usize, ny: usize) -> Mesh {
-    let mut vertices = Vec::with_capacity((nx + 1) * (ny + 1));
-    for i in 0..=nx {
-        for j in 0..=ny {
-            vertices.push(Vec2::new(5.0 * i as f64 / nx as f64, j as f64 / ny as f64));
-        }
-    }
-    let id = |i: usize, j: usize| (i * (ny + 1) + j) as u32;
-    let mut triangles = Vec::with_capacity(2 * nx * ny);
-    for i in 0..nx {
-        for j in 0..ny {
-            triangles.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
-            triangles.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
-        }
-    }
-    Mesh::new(vertices, triangles).expect("structured mesh is valid")
-}
 
 fn main() {
     let repeats: usize = std::env::args()
@@ -55,7 +41,7 @@ fn main() {
     println!("| energy | triangles | 1 thread (elem/s) | 2 threads (elem/s) | speed-up |");
     println!("|---|---:|---:|---:|---:|");
     for &(nx, ny) in &sizes {
-        let mesh = beam(nx, ny);
+        let mesh = rectangle(5.0, 1.0, nx, ny, Diagonal::Right);
         let x: Vec<Vec2> = mesh
             .vertices()
             .iter()

@@ -9,14 +9,18 @@
 //! correct energy feels no stress and linear elasticity does; (3) force assembly throughput
 //! (element evaluations per second) on a 16k-triangle beam, serial.
 
+#[path = "../tests/common/mod.rs"]
+mod common;
+
 use std::time::Instant;
+
+use common::{Diagonal, rectangle};
 
 use fem_core::assembly::populate_forces_serial;
 use fem_core::dispatch_energy;
 use fem_core::energy::{Energy, EnergyKind};
 use fem_core::material::{Material, PlaneModel};
 use fem_core::math::{Mat2, Vec2, rotation};
-use fem_core::mesh::Mesh;
 
 fn main() {
     let material = Material::new(1000.0, 0.3, 1.0).expect("case A material is valid");
@@ -56,22 +60,7 @@ fn main() {
         println!("{:>22}: {:.3e}", e.name(), e.pk1(&q).norm());
     }
 
-    let (nx, ny) = (200, 40);
-    let mut vertices = Vec::new();
-    for i in 0..=nx {
-        for j in 0..=ny {
-            vertices.push(Vec2::new(5.0 * i as f64 / nx as f64, j as f64 / ny as f64));
-        }
-    }
-    let id = |i: usize, j: usize| (i * (ny + 1) + j) as u32;
-    let mut triangles = Vec::new();
-    for i in 0..nx {
-        for j in 0..ny {
-            triangles.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
-            triangles.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
-        }
-    }
-    let mesh = Mesh::new(vertices, triangles).expect("structured mesh is valid");
+    let mesh = rectangle(5.0, 1.0, 200, 40, Diagonal::Right);
     // Bend the beam into a gentle arc so every element is strained.
     let x: Vec<Vec2> = mesh
         .vertices()
