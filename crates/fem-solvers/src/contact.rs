@@ -6,7 +6,8 @@
 //! inside a polygon is pushed out along the shortest way to the obstacle's surface (the closest
 //! point on the polygon boundary; corners push radially). Obstacle corners poking into the
 //! interior of a soft edge are not detected, so obstacles should be at least as coarse as the
-//! mesh near the contact (a flat slab on a strip is the intended use). Contact is frictionless.
+//! mesh near the contact (a flat slab on a strip is the intended use). Friction is Coulomb's
+//! with coefficient `mu` = [`ContactParams::friction`] (0 for frictionless).
 //!
 //! - **Penalty** (explicit stepper): a penetrating vertex of mass `m` at depth `d`, approaching
 //!   the surface with normal speed `v_n < 0`, gets the force
@@ -16,10 +17,15 @@
 //!   of the mesh resolution and gives a vertex-level natural frequency `sqrt(k)` (rad/s), so the
 //!   explicit step must satisfy `dt < 2 (sqrt(1 + zeta^2) - zeta) / sqrt(k)` (the stability guard
 //!   includes this bound). At rest a vertex carrying the weight of a column `r` times its own
-//!   mass sinks by about `r g / k`. A dynamic body receives the opposite force at the vertex.
+//!   mass sinks by about `r g / k`. Friction: the tangential force `-m sqrt(k) v_t` (a viscous
+//!   regularisation of sticking at the contact frequency), capped at `mu` times the normal
+//!   force. A dynamic body receives the opposite force at the vertex.
 //! - **Projection** (PBD and XPBD): after every constraint sweep each penetrating vertex is moved
 //!   to the surface; with a dynamic body the correction is shared by the generalised inverse
-//!   masses `1/m` and `1/M + (r x n)^2 / I`, so momentum is exchanged both ways.
+//!   masses `1/m` and `1/M + (r x n)^2 / I`, so momentum is exchanged both ways. Friction
+//!   (static, position level, as in Macklin et al. 2014): the tangential motion of the vertex
+//!   relative to the obstacle over the (sub)step is cancelled up to `mu` times the
+//!   penetration depth.
 //!
 //! Polygons are given counter-clockwise in world coordinates at `t = 0`, with at least three
 //! vertices and positive area; their pose is then tracked as the centroid position and an angle
@@ -75,6 +81,9 @@ pub struct ContactParams {
     /// Damping ratio of the penalty spring, dimensionless (1 = critically damped for a lone
     /// vertex). Default `0.5`.
     pub damping_ratio: Real,
+    /// Coulomb friction coefficient `mu`, dimensionless (>= 0; 0 = frictionless). Used by both
+    /// penalty and projection contact. Default `0.5`.
+    pub friction: Real,
 }
 
 impl Default for ContactParams {
@@ -82,6 +91,7 @@ impl Default for ContactParams {
         ContactParams {
             stiffness: 1e6,
             damping_ratio: 0.5,
+            friction: 0.5,
         }
     }
 }
@@ -89,7 +99,8 @@ impl Default for ContactParams {
 impl ContactParams {
     pub(crate) fn validate(&self) -> Result<(), SolverError> {
         check_positive("contact.stiffness", self.stiffness)?;
-        check_non_negative("contact.damping_ratio", self.damping_ratio)
+        check_non_negative("contact.damping_ratio", self.damping_ratio)?;
+        check_non_negative("contact.friction", self.friction)
     }
 
     /// The largest explicit time step for which the penalty spring is stable, s.
@@ -437,14 +448,28 @@ pub(crate) fn accumulate_penalty_forces(
     wrenches.fill(Wrench::default());
     let k = params.stiffness;
     let c = 2.0 * params.damping_ratio * k.sqrt();
+    let gamma = k.sqrt();
+    let mu = params.friction;
     let mut contacts = 0;
-    let force = |m: Real, depth: Real, vn: Real| m * (k * depth - c * vn).max(0.0);
+    // Normal plus capped viscous friction force on a vertex of mass m.
+    let force = |m: Real, depth: Real, n: Vec2, v_rel: Vec2| {
+        let vn = v_rel.dot(&n);
+        let fn_ = m * (k * depth - c * vn).max(0.0);
+        let vt = v_rel - n * vn;
+        let mut ft = vt * (-m * gamma);
+        let cap = mu * fn_;
+        let ftn = ft.norm();
+        if ftn > cap {
+            ft *= cap / ftn;
+        }
+        n * fn_ + ft
+    };
     if let Some(g) = ground {
         for (i, p) in x.iter().enumerate() {
             let h = (p - g.point).dot(&g.normal);
             if h < 0.0 {
                 contacts += 1;
-                f[i] += g.normal * force(masses[i], -h, v[i].dot(&g.normal));
+                f[i] += force(masses[i], -h, g.normal, v[i]);
             }
         }
     }
@@ -453,8 +478,7 @@ pub(crate) fn accumulate_penalty_forces(
         for (i, p) in x.iter().enumerate() {
             if let Some((depth, n)) = obs.penetration(&frame, *p) {
                 contacts += 1;
-                let vn = (v[i] - body.point_velocity(*p)).dot(&n);
-                let fi = n * force(masses[i], depth, vn);
+                let fi = force(masses[i], depth, n, v[i] - body.point_velocity(*p));
                 f[i] += fi;
                 wrenches[o].force -= fi;
                 wrenches[o].torque -= cross(p - body.position, fi);
@@ -464,15 +488,30 @@ pub(crate) fn accumulate_penalty_forces(
     contacts
 }
 
-/// Project penetrating vertices of `x` (inverse masses `w`) out of the ground and the
-/// obstacles at the poses `bodies`; dynamic bodies are moved back in proportion to their
-/// generalised inverse mass. Serial, in obstacle then vertex order. Returns the number of
-/// corrected vertex-obstacle pairs.
+/// The tangential correction that cancels the relative tangential motion `rel` (normal `n`)
+/// up to `mu * depth`.
+#[inline]
+fn friction_correction(rel: Vec2, n: Vec2, mu: Real, depth: Real) -> Vec2 {
+    let t = rel - n * rel.dot(&n);
+    let len = t.norm();
+    let limit = mu * depth;
+    if len <= limit { -t } else { t * (-limit / len) }
+}
+
+/// Project penetrating vertices of `x` (inverse masses `w`, positions at the start of the
+/// (sub)step `x_old`) out of the ground and the obstacles at the poses `bodies` (start-of-step
+/// poses `bodies_old`), with static Coulomb friction `mu`; dynamic bodies are moved back in
+/// proportion to their generalised inverse mass. Serial, in obstacle then vertex order.
+/// Returns the number of corrected vertex-obstacle pairs.
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn project_contacts(
     ground: Option<&Ground>,
     obstacles: &[Obstacle],
+    mu: Real,
     w: &[Real],
+    x_old: &[Vec2],
     x: &mut [Vec2],
+    bodies_old: &[BodyState],
     bodies: &mut [BodyState],
 ) -> usize {
     let mut contacts = 0;
@@ -482,10 +521,13 @@ pub(crate) fn project_contacts(
             if h < 0.0 && w[i] > 0.0 {
                 contacts += 1;
                 *p -= g.normal * h;
+                if mu > 0.0 {
+                    *p += friction_correction(*p - x_old[i], g.normal, mu, -h);
+                }
             }
         }
     }
-    for (obs, body) in obstacles.iter().zip(bodies.iter_mut()) {
+    for ((obs, body), old) in obstacles.iter().zip(bodies.iter_mut()).zip(bodies_old) {
         let (im, ii) = obs.inverse_mass();
         let mut frame = Frame::of(body);
         for (i, p) in x.iter_mut().enumerate() {
@@ -503,6 +545,29 @@ pub(crate) fn project_contacts(
                 if wb > 0.0 {
                     body.position -= n * (im * dl);
                     body.angle -= ii * rn * dl;
+                }
+                if mu > 0.0 {
+                    // Motion of the body's material point under the vertex over the step.
+                    let r = *p - body.position;
+                    let dtheta = body.angle - old.angle;
+                    let body_motion =
+                        (body.position - old.position) + Vec2::new(-r.y, r.x) * dtheta;
+                    let corr = friction_correction(*p - x_old[i] - body_motion, n, mu, depth);
+                    let cl = corr.norm();
+                    if cl > 0.0 {
+                        let t = corr / cl;
+                        let rt = cross(r, t);
+                        let wbt = im + ii * rt * rt;
+                        let den = w[i] + wbt;
+                        let dl = if den > 0.0 { cl / den } else { 0.0 };
+                        *p += t * (w[i] * dl);
+                        if wbt > 0.0 {
+                            body.position -= t * (im * dl);
+                            body.angle -= ii * rt * dl;
+                        }
+                    }
+                }
+                if wb > 0.0 || mu > 0.0 {
                     frame = Frame::of(body);
                 }
             }

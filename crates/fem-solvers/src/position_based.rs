@@ -33,8 +33,11 @@
 //!
 //! **Orderings** ([`Ordering`]): plain Gauss-Seidel in triangle order (serial); coloured
 //! Gauss-Seidel (triangles grouped by a greedy colouring, each colour projected in parallel;
-//! default); Jacobi (every constraint from the same positions, corrections averaged per vertex
-//! and scaled by a relaxation factor). Each gives bit-identical states for any thread count:
+//! default); Jacobi (every constraint from the same positions, corrections summed per vertex).
+//! Jacobi scales each constraint's step (its `dlambda` and so its `dx` alike) by
+//! `relaxation / max_j n_j`, with `n_j` the number of triangles at vertex `j`: unlike
+//! per-vertex averaging of `dx` alone, this keeps positions and multipliers consistent, so
+//! Jacobi XPBD converges to the same solution as Gauss-Seidel (more slowly). Each gives bit-identical states for any thread count:
 //! within a colour no two constraints share a vertex, so parallel evaluation followed by
 //! application equals the in-place serial sweep, and Jacobi sums per vertex in element order.
 
@@ -55,24 +58,20 @@ use crate::state::State;
 use crate::{Stepper, first_non_finite};
 
 /// The order in which triangle constraints are projected.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub enum Ordering {
     /// Gauss-Seidel in triangle index order (serial; the paper's loop).
     GaussSeidel,
     /// Gauss-Seidel by colour classes, each class in parallel. Default.
+    #[default]
     Coloured,
-    /// Jacobi: all constraints from the same positions; each vertex moves by `relaxation` times
-    /// the mean of its corrections.
+    /// Jacobi: all constraints from the same positions, each step scaled by
+    /// `relaxation / max_j n_j` (see the module docs), corrections summed per vertex.
     Jacobi {
-        /// Relaxation factor, dimensionless, in `(0, 2)`. 1 is safe; larger converges faster.
+        /// Relaxation factor, dimensionless, in `(0, 2)`. 1 is safe; larger converges faster
+        /// but can oscillate.
         relaxation: Real,
     },
-}
-
-impl Default for Ordering {
-    fn default() -> Self {
-        Ordering::Coloured
-    }
 }
 
 impl Ordering {
@@ -233,6 +232,7 @@ struct Projection {
 
 /// Project one triangle constraint from positions `x` (read only); updates its multiplier.
 #[inline(always)]
+#[allow(clippy::too_many_arguments)]
 fn project_one<E: Energy>(
     energy: &E,
     el: &PackedElement,
@@ -240,6 +240,7 @@ fn project_one<E: Energy>(
     w: &[Real],
     rule: Rule,
     psi_threshold: Real,
+    scale: Real,
     lambda: &mut Real,
 ) -> Projection {
     let f = deformation_gradient(el, x);
@@ -262,29 +263,29 @@ fn project_one<E: Energy>(
     let (m, residual2) = match rule {
         Rule::Pbd { stiffness } => {
             let c = el.area * psi;
-            if !(s > 0.0) && !s.is_nan() {
+            if s <= 0.0 {
                 return skip(c * c);
             }
-            (-stiffness * c / s, c * c)
+            (-stiffness * scale * c / s, c * c)
         }
         Rule::Consistent { alpha_tilde } => {
-            if !(s > 0.0) && !s.is_nan() {
+            if s <= 0.0 {
                 return skip(0.0);
             }
             let c = (2.0 * el.area * psi).sqrt();
             let inv_c = 1.0 / c;
             let r = c + alpha_tilde * *lambda;
-            let dl = -r / (s * inv_c * inv_c + alpha_tilde);
+            let dl = -scale * r / (s * inv_c * inv_c + alpha_tilde);
             *lambda += dl;
             (dl * inv_c, r * r)
         }
         Rule::Literal { alpha_tilde } => {
-            if !(s > 0.0) && !s.is_nan() {
+            if s <= 0.0 {
                 return skip(0.0);
             }
             let c = el.area * psi;
             let r = c + alpha_tilde * *lambda;
-            let dl = -r / (s + alpha_tilde);
+            let dl = -scale * r / (s + alpha_tilde);
             *lambda += dl;
             (dl, r * r)
         }
@@ -354,7 +355,9 @@ struct Engine {
     v_new: Vec<Vec2>,
     corrections: Vec<Projection>,
     chunk_stats: Vec<SweepStats>,
-    inv_adjacent: Vec<Real>,
+    /// Per element (Jacobi only): `relaxation / max_j n_j`, with `n_j` the number of
+    /// triangles at vertex `j`.
+    jacobi_scale: Vec<Real>,
     bodies_pred: Vec<BodyState>,
 }
 
@@ -384,9 +387,22 @@ impl Engine {
             }
             _ => (model.elements.clone(), vec![(0, model.elements.len())], 1),
         };
-        let inv_adjacent = (0..mesh.n_vertices())
-            .map(|v| 1.0 / mesh.adjacency().of(v).len() as Real)
-            .collect();
+        let jacobi_scale = match ordering {
+            Ordering::Jacobi { relaxation } => model
+                .elements
+                .iter()
+                .map(|el| {
+                    let n = el
+                        .idx
+                        .iter()
+                        .map(|&v| mesh.adjacency().of(v as usize).len())
+                        .max()
+                        .unwrap_or(1);
+                    relaxation / n as Real
+                })
+                .collect(),
+            _ => Vec::new(),
+        };
         Engine {
             dt,
             substeps,
@@ -404,7 +420,7 @@ impl Engine {
             v_new: Vec::new(),
             corrections: Vec::new(),
             chunk_stats: Vec::new(),
-            inv_adjacent,
+            jacobi_scale,
             bodies_pred: Vec::new(),
         }
     }
@@ -462,19 +478,15 @@ impl Engine {
         self.lambda.resize(self.elements.len(), 0.0);
 
         // Prediction (Algorithm II, lines 1-2).
-        for i in 0..n {
-            self.v_new[i] = if w[i] > 0.0 {
-                state.v[i] + g * h
-            } else {
-                state.v[i]
-            };
+        for ((vn, v), &wi) in self.v_new.iter_mut().zip(&state.v).zip(w) {
+            *vn = if wi > 0.0 { v + g * h } else { *v };
         }
         for &(v, fe) in model.external_forces() {
             let v = v as usize;
             self.v_new[v] += fe * (w[v] * h);
         }
-        for i in 0..n {
-            self.x_pred[i] = state.x[i] + self.v_new[i] * h;
+        for ((xp, x), v) in self.x_pred.iter_mut().zip(&state.x).zip(&self.v_new) {
+            *xp = x + v * h;
         }
         model
             .kinematics()
@@ -509,8 +521,11 @@ impl Engine {
                 contacts = project_contacts(
                     model.ground(),
                     model.obstacles(),
+                    model.contact_params().friction,
                     w,
+                    &state.x,
                     &mut self.x_pred,
+                    &state.bodies,
                     &mut self.bodies_pred,
                 );
             }
@@ -519,10 +534,10 @@ impl Engine {
         // Velocities (lines 12-13).
         let decay = (-self.damping * h).exp();
         let mut all_finite = true;
-        for i in 0..n {
-            let v = (self.x_pred[i] - state.x[i]) * (decay / h);
-            all_finite &= (v.x + v.y + self.x_pred[i].x + self.x_pred[i].y).is_finite();
-            self.v_new[i] = v;
+        for ((vn, xp), x) in self.v_new.iter_mut().zip(&self.x_pred).zip(&state.x) {
+            let v = (xp - x) * (decay / h);
+            all_finite &= (v.x + v.y + xp.x + xp.y).is_finite();
+            *vn = v;
         }
         model
             .kinematics()
@@ -613,7 +628,7 @@ impl Engine {
                             .zip(self.chunk_stats.par_iter_mut())
                             .for_each(|(((out, lam), els), st)| {
                                 for ((o, l), el) in out.iter_mut().zip(lam).zip(els) {
-                                    *o = project_one(energy, el, x, w, rule, psi_threshold, l);
+                                    *o = project_one(energy, el, x, w, rule, psi_threshold, 1.0, l);
                                     st.add(o);
                                 }
                             });
@@ -637,18 +652,21 @@ impl Engine {
                     }
                 }
             }
-            Ordering::Jacobi { relaxation } => {
+            Ordering::Jacobi { .. } => {
                 let els = &self.elements[..];
                 let nc = els.len().div_ceil(ELEMENT_CHUNK);
                 self.chunk_stats.clear();
                 self.chunk_stats.resize(nc, SweepStats::EMPTY);
                 fill_corrections(&mut self.corrections, els.len());
                 let x: &[Vec2] = &self.x_pred;
+                let scales = &self.jacobi_scale;
                 let body =
-                    |((out, lam), els): ((&mut [Projection], &mut [Real]), &[PackedElement]),
+                    |c: usize,
+                     ((out, lam), els): ((&mut [Projection], &mut [Real]), &[PackedElement]),
                      st: &mut SweepStats| {
-                        for ((o, l), el) in out.iter_mut().zip(lam).zip(els) {
-                            *o = project_one(energy, el, x, w, rule, psi_threshold, l);
+                        let scales = &scales[c * ELEMENT_CHUNK..];
+                        for (((o, l), el), &sc) in out.iter_mut().zip(lam).zip(els).zip(scales) {
+                            *o = project_one(energy, el, x, w, rule, psi_threshold, sc, l);
                             st.add(o);
                         }
                     };
@@ -658,20 +676,21 @@ impl Engine {
                         .zip(self.lambda.par_chunks_mut(ELEMENT_CHUNK))
                         .zip(els.par_chunks(ELEMENT_CHUNK))
                         .zip(self.chunk_stats.par_iter_mut())
-                        .for_each(|(a, st)| body(a, st));
+                        .enumerate()
+                        .for_each(|(c, (a, st))| body(c, a, st));
                 } else {
                     corr.chunks_mut(ELEMENT_CHUNK)
                         .zip(self.lambda.chunks_mut(ELEMENT_CHUNK))
                         .zip(els.chunks(ELEMENT_CHUNK))
                         .zip(self.chunk_stats.iter_mut())
-                        .for_each(|(a, st)| body(a, st));
+                        .enumerate()
+                        .for_each(|(c, (a, st))| body(c, a, st));
                 }
                 for st in &self.chunk_stats {
                     total.merge(st);
                 }
                 // Gather per vertex in element order (adjacency is sorted by element).
                 let corr = &self.corrections[..];
-                let inv_adj = &self.inv_adjacent;
                 let gather = |c: usize, xs: &mut [Vec2]| {
                     for (k, xv) in xs.iter_mut().enumerate() {
                         let v = c * VERTEX_CHUNK + k;
@@ -682,7 +701,7 @@ impl Engine {
                                 s += p.dx[corner as usize];
                             }
                         }
-                        *xv += s * (relaxation * inv_adj[v]);
+                        *xv += s;
                     }
                 };
                 if parallel {
@@ -729,7 +748,7 @@ fn serial_range<E: Energy>(
     for (els, lam) in els.chunks(ELEMENT_CHUNK).zip(lam.chunks_mut(ELEMENT_CHUNK)) {
         let mut st = SweepStats::EMPTY;
         for (el, l) in els.iter().zip(lam) {
-            let p = project_one(energy, el, x, w, rule, psi_threshold, l);
+            let p = project_one(energy, el, x, w, rule, psi_threshold, 1.0, l);
             st.add(&p);
             apply(x, el, &p);
         }

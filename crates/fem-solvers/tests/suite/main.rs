@@ -2,4 +2,7 @@
 //! instead of many): explicit stepping, PBD/XPBD, contact and thread determinism.
 
 mod common;
+mod contact;
+mod determinism;
 mod explicit;
+mod position_based;
