@@ -1,0 +1,190 @@
+//! Mesh files: the mesh JSON contract (read and write) and exports for other tools (Gmsh `.msh`
+//! 2.2 ASCII, legacy VTK ASCII). Every writer goes through [`write_atomic`]: a temporary file in
+//! the target directory renamed into place, so a failed run never leaves a half-written file.
+//!
+//! **Mesh JSON:** `{"vertices": [[x, y], ...], "triangles": [[i, j, k], ...]}`, 0-based indices,
+//! counter-clockwise triangles; extra keys are allowed and ignored on read. The reader rejects
+//! non-finite coordinates, out-of-range or repeated indices and clockwise or degenerate triangles,
+//! naming the offending entry.
+
+use std::fmt::Write as _;
+use std::io::Write as _;
+use std::path::Path;
+
+use serde::Deserialize;
+
+use crate::error::{MeshError, Result};
+use crate::types::Mesh2;
+
+/// Writes `bytes` to `path` atomically (temporary file in the same directory, then rename).
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => std::path::PathBuf::from("."),
+    };
+    let name = path
+        .file_name()
+        .ok_or_else(|| MeshError::io(path, std::io::Error::other("not a file path")))?;
+    let tmp = dir.join(format!(
+        ".{}.tmp{}",
+        name.to_string_lossy(),
+        std::process::id()
+    ));
+    let result = (|| {
+        let mut file = std::fs::File::create(&tmp)?;
+        file.write_all(bytes)?;
+        file.sync_all()?;
+        std::fs::rename(&tmp, path)
+    })();
+    if let Err(e) = result {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(MeshError::io(path, e));
+    }
+    Ok(())
+}
+
+/// Mesh JSON text of `mesh` (one vertex or triangle per line).
+pub fn mesh_to_json(mesh: &Mesh2) -> String {
+    let mut s = String::with_capacity(40 * (mesh.vertices.len() + mesh.triangles.len()) + 64);
+    s.push_str("{\n  \"vertices\": [");
+    for (i, v) in mesh.vertices.iter().enumerate() {
+        let sep = if i == 0 { "\n    " } else { ",\n    " };
+        // serde_json prints the shortest representation that reads back exactly.
+        let text = serde_json::to_string(v).unwrap_or_default();
+        let _ = write!(s, "{sep}{text}");
+    }
+    s.push_str("\n  ],\n  \"triangles\": [");
+    for (i, t) in mesh.triangles.iter().enumerate() {
+        let sep = if i == 0 { "\n    " } else { ",\n    " };
+        let _ = write!(s, "{sep}[{},{},{}]", t[0], t[1], t[2]);
+    }
+    s.push_str("\n  ]\n}\n");
+    s
+}
+
+/// Writes `mesh` as mesh JSON to `path`.
+pub fn write_mesh_json(path: &Path, mesh: &Mesh2) -> Result<()> {
+    write_atomic(path, mesh_to_json(mesh).as_bytes())
+}
+
+#[derive(Deserialize)]
+struct MeshJson {
+    vertices: Vec<[f64; 2]>,
+    triangles: Vec<[usize; 3]>,
+}
+
+/// Parses and validates mesh JSON `bytes` (`path` is only used in error messages).
+pub fn parse_mesh_json(bytes: &[u8], path: &Path) -> Result<Mesh2> {
+    let raw: MeshJson = serde_json::from_slice(bytes).map_err(|e| {
+        MeshError::parse(
+            path,
+            format!("line {} column {}", e.line(), e.column()),
+            e.to_string(),
+        )
+    })?;
+    let mesh = Mesh2 {
+        vertices: raw.vertices,
+        triangles: raw.triangles,
+    };
+    validate_mesh(&mesh)
+        .map_err(|(location, message)| MeshError::parse(path, location, message))?;
+    Ok(mesh)
+}
+
+/// Reads and validates a mesh JSON file.
+pub fn read_mesh_json(path: &Path) -> Result<Mesh2> {
+    let bytes = std::fs::read(path).map_err(|e| MeshError::io(path, e))?;
+    parse_mesh_json(&bytes, path)
+}
+
+/// Checks the mesh contract; on failure returns `(location, message)`.
+pub fn validate_mesh(mesh: &Mesh2) -> std::result::Result<(), (String, String)> {
+    if mesh.triangles.is_empty() {
+        return Err(("triangles".into(), "the mesh has no triangle".into()));
+    }
+    for (i, v) in mesh.vertices.iter().enumerate() {
+        if !(v[0].is_finite() && v[1].is_finite()) {
+            return Err((
+                format!("vertex {i}"),
+                format!("coordinate {v:?} is not finite"),
+            ));
+        }
+    }
+    let n = mesh.vertices.len();
+    for (t, tri) in mesh.triangles.iter().enumerate() {
+        if let Some(bad) = tri.iter().find(|&&i| i >= n) {
+            return Err((
+                format!("triangle {t}"),
+                format!("vertex index {bad} is out of range ({n} vertices)"),
+            ));
+        }
+        if tri[0] == tri[1] || tri[1] == tri[2] || tri[0] == tri[2] {
+            return Err((
+                format!("triangle {t}"),
+                format!("repeated vertex index in {tri:?}"),
+            ));
+        }
+        let area = mesh.signed_area(t);
+        if area.is_nan() || area <= 0.0 {
+            return Err((
+                format!("triangle {t}"),
+                format!("{tri:?} is clockwise or degenerate (signed area {area:e})"),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Gmsh `.msh` 2.2 ASCII text of `mesh` (z = 0, 3-node triangles, physical and elementary tag 1).
+pub fn mesh_to_gmsh(mesh: &Mesh2) -> String {
+    let mut s = String::new();
+    s.push_str("$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n");
+    let _ = writeln!(s, "{}", mesh.vertices.len());
+    for (i, v) in mesh.vertices.iter().enumerate() {
+        let _ = writeln!(s, "{} {:?} {:?} 0", i + 1, v[0], v[1]);
+    }
+    s.push_str("$EndNodes\n$Elements\n");
+    let _ = writeln!(s, "{}", mesh.triangles.len());
+    for (i, t) in mesh.triangles.iter().enumerate() {
+        let _ = writeln!(
+            s,
+            "{} 2 2 1 1 {} {} {}",
+            i + 1,
+            t[0] + 1,
+            t[1] + 1,
+            t[2] + 1
+        );
+    }
+    s.push_str("$EndElements\n");
+    s
+}
+
+/// Writes `mesh` as Gmsh `.msh` 2.2 ASCII.
+pub fn write_gmsh(path: &Path, mesh: &Mesh2) -> Result<()> {
+    write_atomic(path, mesh_to_gmsh(mesh).as_bytes())
+}
+
+/// Legacy VTK ASCII text of `mesh` (unstructured grid of triangles, z = 0).
+pub fn mesh_to_vtk(mesh: &Mesh2) -> String {
+    let mut s = String::new();
+    s.push_str("# vtk DataFile Version 3.0\nfem2d mesh\nASCII\nDATASET UNSTRUCTURED_GRID\n");
+    let _ = writeln!(s, "POINTS {} double", mesh.vertices.len());
+    for v in &mesh.vertices {
+        let _ = writeln!(s, "{:?} {:?} 0", v[0], v[1]);
+    }
+    let m = mesh.triangles.len();
+    let _ = writeln!(s, "CELLS {m} {}", 4 * m);
+    for t in &mesh.triangles {
+        let _ = writeln!(s, "3 {} {} {}", t[0], t[1], t[2]);
+    }
+    let _ = writeln!(s, "CELL_TYPES {m}");
+    for _ in 0..m {
+        s.push_str("5\n");
+    }
+    s
+}
+
+/// Writes `mesh` as legacy VTK ASCII.
+pub fn write_vtk(path: &Path, mesh: &Mesh2) -> Result<()> {
+    write_atomic(path, mesh_to_vtk(mesh).as_bytes())
+}

@@ -1,0 +1,46 @@
+//! # fem-mesh: from a 3D model to a quality 2D FEM mesh
+//!
+//! The mesh-conversion pipeline of the paper (Section 3.3, Figure 1), as a library:
+//!
+//! 1. [`load`]: read a 3D surface (OBJ with group selection, STL, PLY) into a [`Surface3`];
+//! 2. [`camera`]: project it with a camera (position, focal point, up; orthographic or
+//!    perspective) and merge coincident points;
+//! 3. [`alpha`]: alpha shape of the 2D points (radius convention, suggested radius), boundary
+//!    as polygons with holes;
+//! 4. [`simplify`]: Douglas-Peucker with a validity guarantee;
+//! 5. [`triangulate`]: constrained Delaunay with max-area / min-angle refinement (spade);
+//! 6. [`quality`]: the mesh quality report.
+//!
+//! [`pipeline`] chains them with per-stage timings; [`structured`] builds rectangle meshes
+//! (cases A-C); [`io`] reads and writes the mesh JSON contract and exports Gmsh and VTK files;
+//! [`preview`] draws each stage; [`body`] builds a procedural human body so everything runs
+//! without an outside model file.
+//!
+//! ```
+//! use fem_mesh::{body::human_body, pipeline::{mesh_surface, PipelineParams}};
+//! let mut params = PipelineParams::default(); // side view, suggested alpha, 25 degrees
+//! params.triangulate.max_area = Some(2e-3);
+//! let out = mesh_surface(human_body(), &params).unwrap();
+//! assert_eq!(out.mesh.edge_components(), 1);
+//! ```
+//!
+//! **What this crate does not know:** materials, elements, time stepping, boundary conditions,
+//! or any other `fem-*` crate (it depends on none). Its output is a plain [`Mesh2`]; units are
+//! whatever the model uses, times [`pipeline::PipelineParams::scale`].
+
+pub mod alpha;
+pub mod body;
+pub mod camera;
+pub mod error;
+pub mod io;
+pub mod load;
+pub mod pipeline;
+pub mod preview;
+pub mod quality;
+pub mod simplify;
+pub mod structured;
+pub mod triangulate;
+pub mod types;
+
+pub use error::{MeshError, Result};
+pub use types::{Mesh2, PolygonWithHoles, Surface3};

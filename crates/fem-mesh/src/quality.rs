@@ -1,0 +1,161 @@
+//! Mesh quality report: counts, angle range, areas, the mesh area against the polygon area, and
+//! a histogram of the aspect ratio R/(2r) (circumradius over twice the inradius: 1 for an
+//! equilateral triangle, growing without bound as a triangle degenerates).
+
+use std::fmt;
+
+use crate::types::{Mesh2, triangle_signed_area};
+
+/// Upper edges of the aspect-ratio histogram bins; the last bin is everything above.
+pub const ASPECT_BINS: [f64; 6] = [1.1, 1.25, 1.5, 2.0, 3.0, 5.0];
+
+/// Quality numbers of a 2D mesh.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct QualityReport {
+    /// Number of vertices.
+    pub vertices: usize,
+    /// Number of triangles.
+    pub triangles: usize,
+    /// Smallest interior angle (degrees).
+    pub min_angle_deg: f64,
+    /// Largest interior angle (degrees).
+    pub max_angle_deg: f64,
+    /// Smallest triangle area (model units squared).
+    pub min_area: f64,
+    /// Largest triangle area (model units squared).
+    pub max_area: f64,
+    /// Sum of the triangle areas (model units squared).
+    pub mesh_area: f64,
+    /// Area of the polygon that was meshed, when known (model units squared).
+    pub polygon_area: Option<f64>,
+    /// Triangles with non-positive signed area (clockwise or degenerate).
+    pub non_positive_triangles: usize,
+    /// Counts of triangles per aspect-ratio bin (bins in [`ASPECT_BINS`], plus one above).
+    pub aspect_histogram: [usize; ASPECT_BINS.len() + 1],
+}
+
+/// The three interior angles of a triangle (degrees).
+pub fn triangle_angles_deg([a, b, c]: [[f64; 2]; 3]) -> [f64; 3] {
+    let angle = |p: [f64; 2], q: [f64; 2], r: [f64; 2]| {
+        let u = [q[0] - p[0], q[1] - p[1]];
+        let v = [r[0] - p[0], r[1] - p[1]];
+        let cross = u[0] * v[1] - u[1] * v[0];
+        let dot = u[0] * v[0] + u[1] * v[1];
+        cross.abs().atan2(dot).to_degrees()
+    };
+    [angle(a, b, c), angle(b, c, a), angle(c, a, b)]
+}
+
+/// Aspect ratio R/(2r) of a triangle (1 for equilateral, infinite when degenerate).
+pub fn aspect_ratio(corners: [[f64; 2]; 3]) -> f64 {
+    let [a, b, c] = corners;
+    let len = |p: [f64; 2], q: [f64; 2]| ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2)).sqrt();
+    let (la, lb, lc) = (len(b, c), len(c, a), len(a, b));
+    let area = triangle_signed_area(corners).abs();
+    if area == 0.0 {
+        return f64::INFINITY;
+    }
+    let s = 0.5 * (la + lb + lc);
+    let r_in = area / s;
+    let r_circ = la * lb * lc / (4.0 * area);
+    r_circ / (2.0 * r_in)
+}
+
+impl QualityReport {
+    /// Measures `mesh`; `polygon_area` is the area the mesh should cover, when known.
+    pub fn of(mesh: &Mesh2, polygon_area: Option<f64>) -> Self {
+        let mut report = Self {
+            vertices: mesh.vertices.len(),
+            triangles: mesh.triangles.len(),
+            min_angle_deg: if mesh.triangles.is_empty() {
+                0.0
+            } else {
+                180.0
+            },
+            max_angle_deg: 0.0,
+            min_area: if mesh.triangles.is_empty() {
+                0.0
+            } else {
+                f64::INFINITY
+            },
+            max_area: 0.0,
+            mesh_area: 0.0,
+            polygon_area,
+            non_positive_triangles: 0,
+            aspect_histogram: [0; ASPECT_BINS.len() + 1],
+        };
+        for t in 0..mesh.triangles.len() {
+            let corners = mesh.corners(t);
+            let area = triangle_signed_area(corners);
+            if area <= 0.0 {
+                report.non_positive_triangles += 1;
+            }
+            for a in triangle_angles_deg(corners) {
+                report.min_angle_deg = report.min_angle_deg.min(a);
+                report.max_angle_deg = report.max_angle_deg.max(a);
+            }
+            report.min_area = report.min_area.min(area);
+            report.max_area = report.max_area.max(area);
+            report.mesh_area += area;
+            let q = aspect_ratio(corners);
+            let bin = ASPECT_BINS
+                .iter()
+                .position(|&edge| q < edge)
+                .unwrap_or(ASPECT_BINS.len());
+            report.aspect_histogram[bin] += 1;
+        }
+        report
+    }
+}
+
+impl fmt::Display for QualityReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        writeln!(
+            f,
+            "vertices {}, triangles {}",
+            self.vertices, self.triangles
+        )?;
+        writeln!(
+            f,
+            "angles: min {:.2} deg, max {:.2} deg",
+            self.min_angle_deg, self.max_angle_deg
+        )?;
+        writeln!(
+            f,
+            "triangle area: min {:.4e}, max {:.4e}",
+            self.min_area, self.max_area
+        )?;
+        match self.polygon_area {
+            Some(p) if p > 0.0 => writeln!(
+                f,
+                "mesh area {:.6e} vs polygon area {:.6e} (relative difference {:.2e})",
+                self.mesh_area,
+                p,
+                (self.mesh_area - p).abs() / p
+            )?,
+            _ => writeln!(f, "mesh area {:.6e}", self.mesh_area)?,
+        }
+        if self.non_positive_triangles > 0 {
+            writeln!(
+                f,
+                "WARNING: {} clockwise or degenerate triangles",
+                self.non_positive_triangles
+            )?;
+        }
+        writeln!(f, "aspect ratio R/(2r) histogram:")?;
+        let total = self.triangles.max(1) as f64;
+        let mut lower = 1.0;
+        for (i, &count) in self.aspect_histogram.iter().enumerate() {
+            let label = match ASPECT_BINS.get(i) {
+                Some(&upper) => format!("[{lower:.2}, {upper:.2})"),
+                None => format!("[{lower:.2}, inf)"),
+            };
+            if let Some(&upper) = ASPECT_BINS.get(i) {
+                lower = upper;
+            }
+            let bar = "#".repeat(((count as f64 / total) * 40.0).round() as usize);
+            writeln!(f, "  {label:>14} {count:>7} {bar}")?;
+        }
+        Ok(())
+    }
+}
