@@ -1,0 +1,313 @@
+//! `fem2d mesh`: model -> mesh with every pipeline parameter as a flag, the quality report,
+//! per-stage timings and optional preview images of each stage (the paper's Figure 1).
+
+use std::path::PathBuf;
+
+use clap::{Args, ValueEnum};
+use fem_mesh::alpha::{AlphaParams, Components};
+use fem_mesh::body::human_body;
+use fem_mesh::camera::{Camera, Projection, ProjectionParams};
+use fem_mesh::io::{write_gmsh, write_mesh_json, write_vtk};
+use fem_mesh::load::{LoadOptions, load_model};
+use fem_mesh::pipeline::{PipelineOutput, PipelineParams, mesh_surface};
+use fem_mesh::preview::{PREVIEW_FILES, PreviewParams, Stages, write_previews};
+use fem_mesh::triangulate::TriangulateParams;
+
+/// Preset viewing directions for a +Y-up, +Z-forward model.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum View {
+    /// From the model's right (-X) side: image (z, y).
+    Side,
+    /// From the front (+Z): image (x, y).
+    Front,
+    /// From the back (-Z): image (-x, y).
+    Back,
+    /// From above (+Y), front (+Z) pointing down in the image: image (x, -z).
+    Top,
+}
+
+/// Flags of `fem2d mesh`. Lengths are in model units times `--scale` (metres for the built-in
+/// body and for the MakeHuman body with `--scale 0.1`).
+#[derive(Debug, Args)]
+pub struct MeshArgs {
+    /// Model file (.obj, .stl, .ply). Omit with --builtin-body.
+    #[arg(
+        required_unless_present = "builtin_body",
+        conflicts_with = "builtin_body"
+    )]
+    pub input: Option<PathBuf>,
+    /// Use the procedural human body (1.7 m, metres, +Y up) instead of a file.
+    #[arg(long)]
+    pub builtin_body: bool,
+    /// OBJ only: keep faces of this group or object (repeatable; default every face).
+    #[arg(long = "group", short = 'g', value_name = "NAME")]
+    pub groups: Vec<String>,
+    /// Scale factor applied to the model (0.1: decimetres to metres).
+    #[arg(long, default_value_t = 1.0)]
+    pub scale: f64,
+    /// Preset camera direction; the focal point is the model's bounding-box centre.
+    #[arg(long, value_enum, default_value_t = View::Side)]
+    pub view: View,
+    /// Camera position c as X,Y,Z (overrides the preset).
+    #[arg(long, value_parser = parse_vec3, value_name = "X,Y,Z", allow_hyphen_values = true)]
+    pub camera_position: Option<[f64; 3]>,
+    /// Focal point f as X,Y,Z (overrides the preset).
+    #[arg(long, value_parser = parse_vec3, value_name = "X,Y,Z", allow_hyphen_values = true)]
+    pub focal_point: Option<[f64; 3]>,
+    /// Up vector u as X,Y,Z (overrides the preset).
+    #[arg(long, value_parser = parse_vec3, value_name = "X,Y,Z", allow_hyphen_values = true)]
+    pub up: Option<[f64; 3]>,
+    /// Perspective projection instead of orthographic.
+    #[arg(long)]
+    pub perspective: bool,
+    /// Merge projected points closer than this distance (besides points within 1e-9 of the
+    /// drawing's size, which always merge).
+    #[arg(long, default_value_t = 0.0)]
+    pub merge_distance: f64,
+    /// Alpha-shape radius: keep Delaunay triangles with circumradius below it. Default: the
+    /// suggested radius, which is printed.
+    #[arg(long)]
+    pub alpha: Option<f64>,
+    /// Factor on the smallest single-component radius when suggesting a radius.
+    #[arg(long, default_value_t = 1.1)]
+    pub alpha_margin: f64,
+    /// Keep every component of the alpha shape (default: only the largest).
+    #[arg(long)]
+    pub all_components: bool,
+    /// Douglas-Peucker tolerance. Default: --epsilon-per-radius times the alpha radius.
+    #[arg(long)]
+    pub epsilon: Option<f64>,
+    /// Tolerance as a fraction of the alpha radius when --epsilon is not given.
+    #[arg(long, default_value_t = 0.25)]
+    pub epsilon_per_radius: f64,
+    /// Largest triangle area (default: no bound).
+    #[arg(long)]
+    pub max_area: Option<f64>,
+    /// Smallest requested triangle angle in degrees.
+    #[arg(long, default_value_t = 25.0)]
+    pub min_angle: f64,
+    /// Most Steiner points refinement may insert.
+    #[arg(long, default_value_t = 50_000)]
+    pub max_steiner: usize,
+    /// Write the mesh JSON here.
+    #[arg(long, short = 'o', value_name = "PATH")]
+    pub output: Option<PathBuf>,
+    /// Also export a Gmsh .msh 2.2 ASCII file.
+    #[arg(long, value_name = "PATH")]
+    pub msh: Option<PathBuf>,
+    /// Also export a legacy VTK file.
+    #[arg(long, value_name = "PATH")]
+    pub vtk: Option<PathBuf>,
+    /// Write a preview image of each stage (and all four side by side) into this directory.
+    #[arg(long, value_name = "DIR")]
+    pub preview: Option<PathBuf>,
+    /// Height of each preview panel in pixels.
+    #[arg(long, default_value_t = 600)]
+    pub preview_height: usize,
+    /// Exit with an error when the requested quality (angle, area) was not met.
+    #[arg(long)]
+    pub require_quality: bool,
+}
+
+fn parse_vec3(text: &str) -> Result<[f64; 3], String> {
+    let parts: Vec<&str> = text.split(',').map(str::trim).collect();
+    if parts.len() != 3 {
+        return Err(format!("expected X,Y,Z, got {text:?}"));
+    }
+    let mut v = [0.0; 3];
+    for (k, p) in parts.iter().enumerate() {
+        v[k] = p
+            .parse::<f64>()
+            .ok()
+            .filter(|x| x.is_finite())
+            .ok_or_else(|| format!("component {p:?} of {text:?} is not a finite number"))?;
+    }
+    Ok(v)
+}
+
+/// Runs `fem2d mesh`; errors are one-line messages.
+pub fn run(args: &MeshArgs) -> Result<(), String> {
+    let (mut surface, source) = match (&args.input, args.builtin_body) {
+        (_, true) => (human_body(), "built-in body".to_string()),
+        (Some(path), false) => {
+            let options = LoadOptions {
+                groups: args.groups.clone(),
+            };
+            let start = std::time::Instant::now();
+            let s = load_model(path, &options).map_err(|e| e.to_string())?;
+            eprintln!("loaded {} in {:.1} ms", path.display(), ms(start.elapsed()));
+            (s, path.display().to_string())
+        }
+        (None, false) => return Err("give a model file or --builtin-body".into()),
+    };
+    if !(args.scale.is_finite() && args.scale > 0.0) {
+        return Err(format!("--scale must be positive, got {}", args.scale));
+    }
+    surface.scale(args.scale);
+    let camera = camera_for(args, &surface)?;
+    let params = PipelineParams {
+        load: LoadOptions::default(),
+        scale: 1.0,
+        camera,
+        projection: ProjectionParams {
+            merge_distance: args.merge_distance,
+            ..ProjectionParams::default()
+        },
+        alpha: AlphaParams {
+            radius: args.alpha,
+            auto_margin: args.alpha_margin,
+            components: if args.all_components {
+                Components::All
+            } else {
+                Components::Largest
+            },
+        },
+        epsilon: args.epsilon,
+        epsilon_per_radius: args.epsilon_per_radius,
+        triangulate: TriangulateParams {
+            max_area: args.max_area,
+            min_angle_deg: args.min_angle,
+            max_steiner_points: args.max_steiner,
+        },
+    };
+    println!(
+        "model: {source}: {} vertices, {} triangles",
+        surface.vertices.len(),
+        surface.triangles.len()
+    );
+    let out = mesh_surface(surface, &params).map_err(|e| e.to_string())?;
+    print_summary(&out);
+
+    if let Some(path) = &args.output {
+        write_mesh_json(path, &out.mesh).map_err(|e| e.to_string())?;
+        println!("wrote {}", path.display());
+    }
+    if let Some(path) = &args.msh {
+        write_gmsh(path, &out.mesh).map_err(|e| e.to_string())?;
+        println!("wrote {}", path.display());
+    }
+    if let Some(path) = &args.vtk {
+        write_vtk(path, &out.mesh).map_err(|e| e.to_string())?;
+        println!("wrote {}", path.display());
+    }
+    if let Some(dir) = &args.preview {
+        let stages = Stages {
+            points: &out.points,
+            alpha_triangles: &out.alpha.triangles,
+            alpha_points: &out.alpha.points,
+            alpha_polygons: &out.alpha.polygons,
+            simplified: &out.simplified,
+            mesh: &out.mesh,
+        };
+        let preview = PreviewParams {
+            height_px: args.preview_height,
+            ..PreviewParams::default()
+        };
+        write_previews(dir, &stages, &preview).map_err(|e| e.to_string())?;
+        println!("wrote {} in {}", PREVIEW_FILES.join(", "), dir.display());
+    }
+    if args.require_quality && !out.triangulate_report.quality_met() {
+        return Err(format!(
+            "requested quality not met (min angle {:.2} deg, max area {:.4e}, refinement complete: {})",
+            out.triangulate_report.min_angle_deg,
+            out.triangulate_report.max_area,
+            out.triangulate_report.refinement_complete
+        ));
+    }
+    Ok(())
+}
+
+fn camera_for(args: &MeshArgs, surface: &fem_mesh::Surface3) -> Result<Camera, String> {
+    let (lo, hi) = surface
+        .bounds()
+        .ok_or_else(|| "the model has no vertex".to_string())?;
+    let centre = [0, 1, 2].map(|k| 0.5 * (lo[k] + hi[k]));
+    let diag = ((hi[0] - lo[0]).powi(2) + (hi[1] - lo[1]).powi(2) + (hi[2] - lo[2]).powi(2))
+        .sqrt()
+        .max(1.0);
+    let (dir, up) = match args.view {
+        View::Side => ([-1.0, 0.0, 0.0], [0.0, 1.0, 0.0]),
+        View::Front => ([0.0, 0.0, 1.0], [0.0, 1.0, 0.0]),
+        View::Back => ([0.0, 0.0, -1.0], [0.0, 1.0, 0.0]),
+        View::Top => ([0.0, 1.0, 0.0], [0.0, 0.0, -1.0]),
+    };
+    let focal = args.focal_point.unwrap_or(centre);
+    let position = args
+        .camera_position
+        .unwrap_or([0, 1, 2].map(|k| focal[k] + 2.0 * diag * dir[k]));
+    let camera = Camera {
+        position,
+        focal_point: focal,
+        up: args.up.unwrap_or(up),
+        projection: if args.perspective {
+            Projection::Perspective
+        } else {
+            Projection::Orthographic
+        },
+    };
+    camera.basis().map_err(|e| e.to_string())?;
+    Ok(camera)
+}
+
+fn ms(d: std::time::Duration) -> f64 {
+    d.as_secs_f64() * 1e3
+}
+
+fn print_summary(out: &PipelineOutput) {
+    let a = &out.alpha;
+    println!(
+        "projected points: {} distinct (from {} vertices)",
+        out.points.len(),
+        out.surface_vertices
+    );
+    let s = &a.suggestion;
+    println!(
+        "alpha radius: {:.6} ({}; suggested {:.6} = smallest single-component radius {:.6} x margin; median point spacing {:.6}; override with --alpha)",
+        a.radius,
+        if a.radius_was_suggested {
+            "suggested"
+        } else {
+            "given"
+        },
+        s.radius,
+        s.single_component_radius,
+        s.median_spacing
+    );
+    println!(
+        "alpha shape: {} component(s), total area {:.6e}, kept {}, {} pinch triangle(s) removed",
+        a.component_count,
+        a.total_area,
+        a.polygons.len(),
+        a.pinch_triangles_removed
+    );
+    for (i, r) in out.simplify_reports.iter().enumerate() {
+        println!(
+            "simplify polygon {i}: {} -> {} vertices at epsilon {:.6} (requested {:.6})",
+            r.vertices_before, r.vertices_after, r.epsilon_used, out.epsilon
+        );
+        for note in &r.notes {
+            println!("  note: {note}");
+        }
+    }
+    let t = &out.triangulate_report;
+    println!(
+        "refinement: {} Steiner points, complete: {}, min angle {:.2} deg (met: {}), max area {:.4e} (met: {}), smallest input corner {:.2} deg",
+        t.steiner_points,
+        t.refinement_complete,
+        t.min_angle_deg,
+        t.min_angle_met,
+        t.max_area,
+        t.max_area_met,
+        t.smallest_input_angle_deg
+    );
+    print!("{}", out.quality);
+    let tm = &out.times;
+    println!(
+        "time (ms): project {:.2}, alpha {:.2}, simplify {:.2}, triangulate {:.2}, quality {:.2}",
+        ms(tm.project),
+        ms(tm.alpha),
+        ms(tm.simplify),
+        ms(tm.triangulate),
+        ms(tm.quality)
+    );
+}

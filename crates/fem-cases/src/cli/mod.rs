@@ -1,0 +1,3 @@
+//! The `fem2d` subcommands, one module each.
+
+pub mod mesh;

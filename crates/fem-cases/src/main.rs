@@ -1,0 +1,35 @@
+//! `fem2d`: the command line of the framework. Each subcommand lives in its own module under
+//! [`cli`]; this file only parses the command line, dispatches, and turns errors into a one-line
+//! message and a non-zero exit code.
+
+mod cli;
+
+use clap::{Parser, Subcommand};
+
+/// 2D energy-based FEM prototyping framework.
+#[derive(Debug, Parser)]
+#[command(name = "fem2d", version, about)]
+struct Fem2d {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Turn a 3D model (OBJ, STL, PLY or the built-in body) into a 2D FEM mesh.
+    Mesh(Box<cli::mesh::MeshArgs>),
+}
+
+fn main() -> std::process::ExitCode {
+    let args = Fem2d::parse();
+    let result = match args.command {
+        Command::Mesh(mesh) => cli::mesh::run(&mesh),
+    };
+    match result {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(message) => {
+            eprintln!("error: {message}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}

@@ -1,0 +1,148 @@
+//! `fem2d mesh` end to end: the built-in body becomes a mesh JSON (readable by the mesh JSON
+//! reader), Gmsh and VTK files and four stage previews; bad input ends with a one-line error and
+//! a non-zero exit code, and leaves no output file behind.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn fem2d(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_fem2d"))
+        .args(args)
+        .output()
+        .expect("fem2d runs")
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("fem2d-cli-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn arg(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+#[test]
+fn builtin_body_to_mesh_files_and_previews() {
+    let dir = scratch("ok");
+    let (json, msh, vtk, preview) = (
+        dir.join("body.json"),
+        dir.join("body.msh"),
+        dir.join("body.vtk"),
+        dir.join("preview"),
+    );
+    let out = fem2d(&[
+        "mesh",
+        "--builtin-body",
+        "--view",
+        "front",
+        "--max-area",
+        "1e-3",
+        "--min-angle",
+        "25",
+        "-o",
+        arg(&json),
+        "--msh",
+        arg(&msh),
+        "--vtk",
+        arg(&vtk),
+        "--preview",
+        arg(&preview),
+        "--preview-height",
+        "200",
+        "--require-quality",
+    ]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    for needle in [
+        "alpha radius",
+        "suggested",
+        "min angle",
+        "aspect ratio",
+        "time (ms)",
+    ] {
+        assert!(stdout.contains(needle), "missing {needle:?} in\n{stdout}");
+    }
+    let mesh = fem_mesh::io::read_mesh_json(&json).unwrap();
+    assert_eq!(mesh.edge_components(), 1);
+    let gmsh = std::fs::read_to_string(&msh).unwrap();
+    assert!(gmsh.starts_with("$MeshFormat\n2.2 0 8\n"));
+    assert!(gmsh.contains(&format!("$Elements\n{}\n", mesh.triangles.len())));
+    assert!(
+        std::fs::read_to_string(&vtk)
+            .unwrap()
+            .contains("CELL_TYPES")
+    );
+    for name in fem_mesh::preview::PREVIEW_FILES {
+        let bytes = std::fs::read(preview.join(name)).unwrap();
+        assert_eq!(&bytes[1..4], b"PNG", "{name}");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn bad_input_is_a_one_line_error_without_output() {
+    let dir = scratch("bad");
+    let json = dir.join("out.json");
+    let empty = dir.join("empty.obj");
+    std::fs::write(&empty, "").unwrap();
+    let nan = dir.join("nan.obj");
+    std::fs::write(&nan, "v 0 0 0\nv 1 NaN 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+    let flat = dir.join("flat.obj");
+    std::fs::write(&flat, "v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n").unwrap();
+    let missing = dir.join("missing.stl");
+    let cases: Vec<(Vec<&str>, &str)> = vec![
+        (vec![arg(&empty)], "empty.obj: contents: no vertices"),
+        (
+            vec![arg(&nan)],
+            "nan.obj: line 2: vertex y \"NaN\" is not finite",
+        ),
+        (vec![arg(&flat), "--view", "front"], "collinear"),
+        (vec![arg(&missing)], "missing.stl"),
+        (
+            vec!["--builtin-body", "--alpha", "1e-5"],
+            "keeps no triangle",
+        ),
+        (
+            vec!["--builtin-body", "--epsilon", "5"],
+            "larger than the shape",
+        ),
+        (vec!["--builtin-body", "--up", "1,0,0"], "parallel"),
+        (
+            vec![
+                "--builtin-body",
+                "--focal-point",
+                "1,2,3",
+                "--camera-position",
+                "1,2,3",
+            ],
+            "coincides",
+        ),
+        (vec!["--builtin-body", "--scale", "0"], "--scale"),
+    ];
+    for (extra, needle) in cases {
+        let mut args = vec!["mesh", "-o", arg(&json)];
+        args.extend(&extra);
+        let out = fem2d(&args);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{extra:?} should fail");
+        let last = stderr.trim_end().lines().last().unwrap_or("");
+        assert!(
+            last.starts_with("error: ") && last.contains(needle),
+            "{extra:?}: {stderr}"
+        );
+        assert!(!json.exists(), "{extra:?} left an output file");
+    }
+    // Unparsable flags are clap's business: non-zero exit too.
+    assert!(
+        !fem2d(&["mesh", "--builtin-body", "--up", "1,x,0"])
+            .status
+            .success()
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
