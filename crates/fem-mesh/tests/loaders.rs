@@ -271,4 +271,20 @@ proptest! {
         let _ = parse_ply(&mutate(ply_binary(false), cut, &flips, &insert), p("m.ply"));
         let _ = parse_ply(&mutate(ply_binary(true), cut, &flips, &insert), p("m.ply"));
     }
+
+    #[test]
+    fn loaders_never_panic_on_huge_counts(count in any::<u32>(), which in 0usize..4) {
+        let count = count.to_string();
+        let ply = match which {
+            0 => PLY_ASCII.replace("element vertex 4", &format!("element vertex {count}")),
+            1 => PLY_ASCII.replace("element face 1", &format!("element face {count}")),
+            2 => PLY_ASCII.replace("4 0 1 2 3", &format!("{count} 0 1 2 3")),
+            _ => String::from_utf8_lossy(&ply_binary(false))
+                .replace("element vertex 3", &format!("element vertex {count}")),
+        };
+        let _ = parse_ply(ply.as_bytes(), p("h.ply"));
+        let mut stl = stl_binary(&[[[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]; 2]);
+        stl[80..84].copy_from_slice(&count.parse::<u32>().unwrap().to_le_bytes());
+        let _ = parse_stl(&stl, p("h.stl"));
+    }
 }
