@@ -11,6 +11,11 @@
 //! times [`AlphaParams::auto_margin`]. It is found in one pass (triangles sorted by circumradius,
 //! joined with a union-find), not by trial and error.
 //!
+//! **Small holes.** Enclosed holes made only of triangles with a circumradius below
+//! [`AlphaParams::fill_holes_below`] times the radius are filled: on unevenly sampled surfaces
+//! they are gaps between rows of vertices, not holes of the shape (counted in
+//! [`AlphaShape::holes_filled`]).
+//!
 //! **Boundary.** Kept triangles that meet another part of the shape only at a vertex (a "pinch")
 //! would make a self-touching boundary, which neither a polygon nor a mesher accepts. At each
 //! such vertex the largest fan of triangles is kept and the smaller fans are dropped (counted in
@@ -44,6 +49,11 @@ pub struct AlphaParams {
     pub auto_margin: f64,
     /// Which components to keep. Default [`Components::Largest`].
     pub components: Components,
+    /// Fill every hole whose Delaunay triangles all have a circumradius below this multiple of
+    /// the radius (dimensionless). Such holes are gaps in unevenly sampled surfaces (rows of
+    /// vertices slightly farther apart than the radius), not features of the shape; real holes
+    /// hold triangles far larger than the radius. Default 2; 1 disables filling.
+    pub fill_holes_below: f64,
 }
 
 impl Default for AlphaParams {
@@ -52,6 +62,7 @@ impl Default for AlphaParams {
             radius: None,
             auto_margin: 1.1,
             components: Components::Largest,
+            fill_holes_below: 2.0,
         }
     }
 }
@@ -73,6 +84,8 @@ pub struct AlphaShape {
     pub total_area: f64,
     /// Triangles dropped to remove pinch vertices.
     pub pinch_triangles_removed: usize,
+    /// Holes filled by the [`AlphaParams::fill_holes_below`] rule.
+    pub holes_filled: usize,
     /// The kept triangles (indices into [`AlphaShape::points`]), for previews and diagnostics.
     pub triangles: Vec<[usize; 3]>,
     /// The distinct input points in Delaunay order.
@@ -232,6 +245,15 @@ pub fn alpha_shape(points: &[[f64; 2]], params: &AlphaParams) -> Result<AlphaSha
             format!("{} points given, at least 3 are needed", points.len()),
         ));
     }
+    if !(params.fill_holes_below.is_finite() && params.fill_holes_below >= 1.0) {
+        return Err(MeshError::invalid(
+            "alpha shape",
+            format!(
+                "hole-fill factor must be >= 1, got {}",
+                params.fill_holes_below
+            ),
+        ));
+    }
     if !(params.auto_margin.is_finite() && params.auto_margin >= 1.0) {
         return Err(MeshError::invalid(
             "alpha shape",
@@ -265,6 +287,7 @@ pub fn alpha_shape(points: &[[f64; 2]], params: &AlphaParams) -> Result<AlphaSha
             ),
         ));
     }
+    let holes_filled = fill_small_holes(&dt, &mut kept, params.fill_holes_below * radius);
     let pinch_triangles_removed = remove_pinches(&dt, &mut kept);
 
     // Components over kept triangles joined by an edge.
@@ -335,6 +358,7 @@ pub fn alpha_shape(points: &[[f64; 2]], params: &AlphaParams) -> Result<AlphaSha
         component_count,
         total_area,
         pinch_triangles_removed,
+        holes_filled,
         triangles,
         points: dt.points,
     })
@@ -352,6 +376,48 @@ fn is_boundary(dt: &Delaunay, kept: &[bool], t: usize, k: usize) -> bool {
 /// Corner index of vertex `v` in triangle `t`.
 fn corner(dt: &Delaunay, t: usize, v: usize) -> usize {
     dt.triangles[t].iter().position(|&x| x == v).unwrap_or(0)
+}
+
+/// Marks as kept every region of dropped triangles that is enclosed by kept ones (touches
+/// neither the convex hull nor the outside) and whose circumradii are all below `limit`; returns
+/// the number of such regions.
+fn fill_small_holes(dt: &Delaunay, kept: &mut [bool], limit: f64) -> usize {
+    let nt = dt.triangles.len();
+    let mut seen = vec![false; nt];
+    let mut region = Vec::new();
+    let mut stack = Vec::new();
+    let mut filled = 0;
+    for start in 0..nt {
+        if kept[start] || seen[start] {
+            continue;
+        }
+        region.clear();
+        stack.push(start);
+        seen[start] = true;
+        let mut enclosed = true;
+        let mut small = true;
+        while let Some(t) = stack.pop() {
+            region.push(t);
+            small &= dt.circumradius[t] < limit;
+            for nb in dt.neighbours[t] {
+                match nb {
+                    None => enclosed = false,
+                    Some(n) if !kept[n] && !seen[n] => {
+                        seen[n] = true;
+                        stack.push(n);
+                    }
+                    Some(_) => {}
+                }
+            }
+        }
+        if enclosed && small {
+            for &t in &region {
+                kept[t] = true;
+            }
+            filled += 1;
+        }
+    }
+    filled
 }
 
 /// Drops the smaller fans at every pinch vertex until none is left; returns the number of dropped

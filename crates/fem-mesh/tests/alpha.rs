@@ -222,3 +222,47 @@ fn pinch_vertices_are_removed() {
         fem_mesh::simplify::validate_polygon(poly).unwrap();
     }
 }
+
+#[test]
+fn small_sampling_holes_are_filled_real_holes_kept() {
+    // A regular grid (spacing h = 0.05) with one interior point missing: the gap is a hole of
+    // triangles with circumradius h..h*sqrt(2), just above a radius of 0.04.
+    let h = 0.05;
+    let pts: Vec<[f64; 2]> = (0..=20)
+        .flat_map(|i| (0..=20).map(move |j| [i as f64 * h, j as f64 * h]))
+        .filter(|p| (p[0] - 0.5).abs() > 1e-9 || (p[1] - 0.5).abs() > 1e-9)
+        .collect();
+    let filled = alpha_shape(
+        &pts,
+        &AlphaParams {
+            radius: Some(0.04),
+            ..AlphaParams::default()
+        },
+    )
+    .unwrap();
+    assert_eq!(
+        (filled.holes_filled, filled.polygons[0].holes.len()),
+        (1, 0)
+    );
+    assert!((filled.polygons[0].area() - 1.0).abs() < 1e-9);
+    let kept = alpha_shape(
+        &pts,
+        &AlphaParams {
+            radius: Some(0.04),
+            fill_holes_below: 1.0,
+            ..AlphaParams::default()
+        },
+    )
+    .unwrap();
+    assert_eq!((kept.holes_filled, kept.polygons[0].holes.len()), (0, 1));
+    assert!(
+        alpha_shape(
+            &pts,
+            &AlphaParams {
+                fill_holes_below: 0.5,
+                ..AlphaParams::default()
+            }
+        )
+        .is_err()
+    );
+}

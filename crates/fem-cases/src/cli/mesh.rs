@@ -74,6 +74,10 @@ pub struct MeshArgs {
     /// Keep every component of the alpha shape (default: only the largest).
     #[arg(long)]
     pub all_components: bool,
+    /// Fill enclosed holes whose triangles all have a circumradius below this multiple of the
+    /// alpha radius (1 disables).
+    #[arg(long, default_value_t = 2.0)]
+    pub fill_holes_below: f64,
     /// Douglas-Peucker tolerance. Default: --epsilon-per-radius times the alpha radius.
     #[arg(long)]
     pub epsilon: Option<f64>,
@@ -161,6 +165,7 @@ pub fn run(args: &MeshArgs) -> Result<(), String> {
             } else {
                 Components::Largest
             },
+            fill_holes_below: args.fill_holes_below,
         },
         epsilon: args.epsilon,
         epsilon_per_radius: args.epsilon_per_radius,
@@ -274,10 +279,11 @@ fn print_summary(out: &PipelineOutput) {
         s.median_spacing
     );
     println!(
-        "alpha shape: {} component(s), total area {:.6e}, kept {}, {} pinch triangle(s) removed",
+        "alpha shape: {} component(s), total area {:.6e}, kept {}, {} small hole(s) filled, {} pinch triangle(s) removed",
         a.component_count,
         a.total_area,
         a.polygons.len(),
+        a.holes_filled,
         a.pinch_triangles_removed
     );
     for (i, r) in out.simplify_reports.iter().enumerate() {
