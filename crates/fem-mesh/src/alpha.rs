@@ -189,7 +189,7 @@ pub fn suggest_radius(points: &[[f64; 2]], auto_margin: f64) -> Result<RadiusSug
 fn suggest(dt: &Delaunay, auto_margin: f64) -> RadiusSuggestion {
     let nt = dt.triangles.len();
     let mut order: Vec<usize> = (0..nt).collect();
-    order.sort_by(|&a, &b| dt.circumradius[a].total_cmp(&dt.circumradius[b]));
+    order.sort_unstable_by(|&a, &b| dt.circumradius[a].total_cmp(&dt.circumradius[b]));
     let mut added = vec![false; nt];
     let mut covered = vec![false; dt.points.len()];
     let mut n_covered = 0;

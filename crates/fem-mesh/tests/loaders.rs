@@ -101,7 +101,7 @@ fn obj_errors_name_file_and_line() {
             "v 0 0 0\nv 1 nan 0\n",
             "a.obj: line 2: vertex y \"nan\" is not finite",
         ),
-        ("v 0 0\n", "a.obj: line 1: vertex has no z"),
+        ("v 0 0\n", "a.obj: line 1: vertex z coordinate is missing"),
         (
             "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n",
             "a.obj: line 4: face index 9 is out of range",

@@ -117,11 +117,11 @@ fn parse_ascii(bytes: &[u8], path: &Path) -> Result<Surface3> {
                     return Err(err("`vertex` outside `outer loop`".into()));
                 }
                 let mut p = [0.0; 3];
-                for (k, name) in ["x", "y", "z"].iter().enumerate() {
+                for (k, name) in ["vertex x", "vertex y", "vertex z"].iter().enumerate() {
                     let tok = toks
                         .next()
-                        .ok_or_else(|| err(format!("vertex has no {name} coordinate")))?;
-                    p[k] = parse_finite(tok, &format!("vertex {name}")).map_err(err)?;
+                        .ok_or_else(|| err(format!("{name} coordinate is missing")))?;
+                    p[k] = parse_finite(tok, name).map_err(err)?;
                 }
                 if corners.len() == 3 {
                     return Err(err("facet has more than 3 vertices".into()));
