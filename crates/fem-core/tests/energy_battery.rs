@@ -8,7 +8,8 @@
 //!   (linear elasticity must instead *fail* this, which is checked too);
 //! - the linearisation at `F = I` equals linear elasticity with the same Lamé parameters;
 //! - the projected `dP/dF` is symmetric positive semi-definite, equals `dP/dF` where that is
-//!   already PSD, and is positive definite at rest.
+//!   already PSD, and is positive definite at rest;
+//! - the batched `pk1_lanes` equals `pk1` lane by lane, bit for bit.
 //!
 //! Tolerances. The FD oracle sweeps steps `1e-2..1e-8` and keeps the best: for these smooth
 //! functions of O(1) arguments with O(1e3) values the best central difference is accurate to
@@ -23,7 +24,7 @@ use common::Rng;
 use fem_core::energy::{Corotational, Energy, Linear, NeoHookean, StableNeoHookean, Stvk};
 use fem_core::fd::{FdOptions, check_gradient, check_jacobian};
 use fem_core::material::{Material, PlaneModel};
-use fem_core::math::{Mat2, Mat4, Real, rotation, unvec, vec};
+use fem_core::math::{LANES, Mat2, Mat2Lanes, Mat4, Real, rotation, unvec, vec};
 use fem_core::{Lame, dispatch_energy};
 use nalgebra::SymmetricEigen;
 
@@ -198,6 +199,26 @@ fn check_dpk1_is_symmetric<E: Energy>(e: &E, fs: &[Mat2]) {
     }
 }
 
+/// The batched `pk1_lanes` equals `pk1` lane by lane, bit for bit (NaN where `pk1` is NaN), so
+/// kernels may batch elements without changing results.
+fn check_pk1_lanes_equals_pk1<E: Energy>(e: &E, fs: &[Mat2]) {
+    for batch in fs.chunks(LANES) {
+        let mut mats = [Mat2::identity(); LANES];
+        mats[..batch.len()].copy_from_slice(batch);
+        let p = e.pk1_lanes(&Mat2Lanes::from_mats(&mats));
+        for (i, f) in mats.iter().enumerate() {
+            let (got, want) = (p.lane(i), e.pk1(f));
+            for (g, w) in got.iter().zip(want.iter()) {
+                assert!(
+                    g.to_bits() == w.to_bits() || (g.is_nan() && w.is_nan()),
+                    "{}: pk1_lanes differs from pk1 at F = {f:?}: {got:?} vs {want:?}",
+                    e.name()
+                );
+            }
+        }
+    }
+}
+
 macro_rules! energy_battery {
     ($module:ident, $make:expr, inverted: $inv:expr, frame_indifferent: $fi:expr) => {
         mod $module {
@@ -220,6 +241,12 @@ macro_rules! energy_battery {
             #[test]
             fn dpk1_is_symmetric() {
                 check_dpk1_is_symmetric(&energy(), &samples(3, $inv));
+            }
+
+            #[test]
+            fn pk1_lanes_equals_pk1() {
+                // Include inverted samples for every energy: NaN must stay NaN.
+                check_pk1_lanes_equals_pk1(&energy(), &samples(7, true));
             }
 
             #[test]

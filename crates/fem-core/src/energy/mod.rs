@@ -32,7 +32,7 @@ pub use stvk::Stvk;
 use nalgebra::SymmetricEigen;
 
 use crate::material::Lame;
-use crate::math::{Mat2, Mat4, Real};
+use crate::math::{LANES, Mat2, Mat2Lanes, Mat4, Real};
 
 /// A hyperelastic energy density of the deformation gradient.
 ///
@@ -61,6 +61,22 @@ pub trait Energy: Send + Sync + Clone + fmt::Debug {
     /// `psi` and `P` together; energies override it when the two share work.
     fn psi_pk1(&self, f: &Mat2) -> (Real, Mat2) {
         (self.psi(f), self.pk1(f))
+    }
+
+    /// [`Energy::pk1`] for a batch of [`LANES`] deformation gradients in structure-of-arrays
+    /// form, for element kernels that evaluate several elements at once.
+    ///
+    /// Contract: lane `i` of the result is bit-identical to `pk1(&f.lane(i))`. The default
+    /// calls [`Energy::pk1`] per lane; energies override it with lane-wise arithmetic (the
+    /// same operations in the same order, branches written as selects) that the compiler
+    /// vectorises.
+    #[inline(always)]
+    fn pk1_lanes(&self, f: &Mat2Lanes) -> Mat2Lanes {
+        let mut p = Mat2Lanes::default();
+        for i in 0..LANES {
+            p.set_lane(i, &self.pk1(&f.lane(i)));
+        }
+        p
     }
 }
 
@@ -232,6 +248,9 @@ impl Energy for AnyEnergy {
     }
     fn psi_pk1(&self, f: &Mat2) -> (Real, Mat2) {
         dispatch_energy!(self, e => e.psi_pk1(f))
+    }
+    fn pk1_lanes(&self, f: &Mat2Lanes) -> Mat2Lanes {
+        dispatch_energy!(self, e => e.pk1_lanes(f))
     }
 }
 

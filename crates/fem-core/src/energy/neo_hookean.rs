@@ -17,7 +17,7 @@
 
 use super::Energy;
 use crate::material::Lame;
-use crate::math::{Mat2, Mat4, Real, cofactor, linear_map_matrix, outer};
+use crate::math::{Mat2, Mat2Lanes, Mat4, Real, cofactor, linear_map_matrix, outer};
 
 /// Compressible Neo-Hookean energy.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -58,6 +58,23 @@ impl Energy for NeoHookean {
             return Mat2::from_element(Real::NAN);
         }
         f * self.mu + cofactor(f) * ((self.lambda * j.ln() - self.mu) / j)
+    }
+
+    /// Lane-wise [`Energy::pk1`]: the same operations in the same order per lane, with
+    /// `J <= 0` selected to NaN instead of branched on.
+    #[inline(always)]
+    fn pk1_lanes(&self, f: &Mat2Lanes) -> Mat2Lanes {
+        let j = f.determinant();
+        // (lambda log J - mu) / J, NaN where J <= 0 so the whole P is NaN there.
+        let c = j.select_positive((j.ln() * self.lambda - self.mu) / j, Real::NAN);
+        let (f00, f10, f01, f11) = (f.m00(), f.m10(), f.m01(), f.m11());
+        // mu F + cof(F) c with cof(F) = [[F11, -F10], [-F01, F00]].
+        Mat2Lanes([
+            f00 * self.mu + f11 * c,
+            f10 * self.mu + (-f01) * c,
+            f01 * self.mu + (-f10) * c,
+            f11 * self.mu + f00 * c,
+        ])
     }
 
     #[inline]
