@@ -11,7 +11,7 @@
 //!
 //! Options: `--threads N` (rayon pool size, default 1), `--sizes 1000,16000,...` (triangle
 //! counts), `--seconds S` (target time per measurement, default 0.5), `--repeat R` (best of R,
-//! default 3), `--skip-pbd`. The set-up matches the peer scripts: 5 m x 1 m beam, left edge
+//! default 3), `--skip-pbd`, `--energies neo-hookean,stvk,corotational` (explicit rows to run). The set-up matches the peer scripts: 5 m x 1 m beam, left edge
 //! pinned, gravity, E = 1000 Pa, nu = 0.3, 1 kg, symplectic Euler, damping 1/s, dt half the
 //! critical step.
 
@@ -33,6 +33,7 @@ struct Options {
     seconds: f64,
     repeat: usize,
     pbd: bool,
+    energies: Option<Vec<String>>,
 }
 
 fn parse() -> Result<Options, String> {
@@ -42,6 +43,7 @@ fn parse() -> Result<Options, String> {
         seconds: 0.5,
         repeat: 3,
         pbd: true,
+        energies: None,
     };
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
@@ -57,6 +59,7 @@ fn parse() -> Result<Options, String> {
             "--seconds" => o.seconds = value()?.parse().map_err(|e| format!("--seconds: {e}"))?,
             "--repeat" => o.repeat = value()?.parse().map_err(|e| format!("--repeat: {e}"))?,
             "--skip-pbd" => o.pbd = false,
+            "--energies" => o.energies = Some(value()?.split(',').map(str::to_owned).collect()),
             other => return Err(format!("unknown option `{other}`")),
         }
     }
@@ -120,6 +123,12 @@ fn time_per_step<E: Energy, S: Stepper + Clone>(
 
 fn explicit_row<E: Energy>(energy: E, o: &Options) {
     let name = energy.name();
+    if o.energies
+        .as_ref()
+        .is_some_and(|l| !l.iter().any(|n| n == name))
+    {
+        return;
+    }
     print!("{name:<14}");
     for &n in &o.sizes {
         let m = model(energy.clone(), n);

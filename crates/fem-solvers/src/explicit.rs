@@ -74,7 +74,7 @@ pub struct ExplicitStepper {
     n_triangles: usize,
     check: TimeStepCheck,
     f: Vec<Vec2>,
-    element_buf: Vec<[Vec2; 2]>,
+    slots: Vec<Vec2>,
     x_new: Vec<Vec2>,
     v_new: Vec<Vec2>,
     wrenches: Vec<Wrench>,
@@ -93,7 +93,7 @@ impl ExplicitStepper {
             n_triangles: model.mesh().n_triangles(),
             check: model.check_time_step(params.dt),
             f: vec![Vec2::zeros(); n],
-            element_buf: Vec::new(),
+            slots: Vec::new(),
             x_new: vec![Vec2::zeros(); n],
             v_new: vec![Vec2::zeros(); n],
             wrenches: vec![Wrench::default(); model.obstacles().len()],
@@ -145,11 +145,11 @@ impl Stepper for ExplicitStepper {
 
         let inv = kernel::forces(
             model.energy(),
-            &model.elements,
-            model.mesh().adjacency(),
+            &model.blocks,
+            model.mesh(),
             &state.x,
             &mut self.f,
-            &mut self.element_buf,
+            &mut self.slots,
         );
         for &(v, fe) in model.external_forces() {
             self.f[v as usize] += fe;

@@ -4,18 +4,25 @@
 //!
 //! Element data are packed once per model into [`PackedElement`] (indices, `Dm^-1`, rest area:
 //! 56 bytes, streamed in element order) so the hot loop touches one array plus the positions.
+//! The explicit force kernel uses them regrouped into [`ElementBlock`]s of [`LANES`] triangles
+//! in structure-of-arrays form and evaluates a block at a time with lane-wise arithmetic
+//! ([`Energy::pk1_lanes`]), which the compiler vectorises.
 //!
 //! Architecture invariant: **the parallel force assembly is bit-identical to the serial one for
 //! any number of threads.** The serial path scatters element forces into the output in element
-//! order. The parallel path writes each element's forces on its vertices 1 and 2 into a
-//! per-element buffer (work split in fixed chunks of [`ELEMENT_CHUNK`] elements), then sums each
-//! vertex's contributions over the vertex-to-element adjacency, which is sorted by element, so
-//! every sum is formed in the same order from the same zero. The force on vertex 0,
-//! `-(f1 + f2)`, is recomputed by the same expression in both paths.
+//! order. The parallel path follows the mesh's
+//! [`ScatterPlan`](fem_core::partition::ScatterPlan) (fixed chunks of triangles; each chunk adds
+//! straight into the vertices only it touches and writes the rest into slots, summed per vertex
+//! in triangle order afterwards), so every sum is formed in the same order from the same zero.
+//! Lane `l` of a block performs exactly the scalar operations for its element, so the batching
+//! does not depend on anything but the (fixed) triangle order either.
+
+use std::sync::Mutex;
 
 use fem_core::energy::Energy;
-use fem_core::math::{Mat2, Real, Vec2};
-use fem_core::mesh::{Mesh, VertexAdjacency};
+use fem_core::math::{LANES, Lanes, Mat2, Mat2Lanes, Real, Vec2};
+use fem_core::mesh::Mesh;
+use fem_core::partition::{ELEMENT_CHUNK as PLAN_CHUNK, Target, for_each_chunk};
 use rayon::prelude::*;
 
 /// Elements per parallel task. Fixed, so the work split never depends on the thread count.
@@ -111,94 +118,213 @@ pub(crate) fn energy_gradients(el: &PackedElement, p: &Mat2) -> (Vec2, Vec2) {
     (g1 * a, g2 * a)
 }
 
-/// Forces on vertices 1 and 2 of one element and its `det F`.
-#[inline(always)]
-fn element_forces<E: Energy>(energy: &E, el: &PackedElement, x: &[Vec2]) -> ([Vec2; 2], Real) {
-    let f = deformation_gradient(el, x);
-    let p = energy.pk1(&f);
-    let (g1, g2) = energy_gradients(el, &p);
-    ([-g1, -g2], f.determinant())
+/// Rest data of [`LANES`] consecutive triangles in structure-of-arrays form, for the batched
+/// force kernel. The last block of a mesh is padded with copies of its first triangle; padded
+/// lanes are evaluated but never scattered nor counted.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct ElementBlock {
+    /// `Dm^-1` of each lane.
+    pub dm_inv: Mat2Lanes,
+    /// Rest area of each lane, m^2.
+    pub area: Lanes,
+    /// `idx[corner][lane]`: vertex indices.
+    pub idx: [[u32; LANES]; 3],
 }
 
-/// Elements evaluated per block before their forces are scattered (serial path).
-const BLOCK: usize = 32;
+// A scatter-plan chunk is a whole number of blocks.
+const _: () = assert!(PLAN_CHUNK % LANES == 0);
+
+/// Pack elements (in triangle order) into blocks of [`LANES`].
+pub(crate) fn pack_blocks(elements: &[PackedElement]) -> Vec<ElementBlock> {
+    elements
+        .chunks(LANES)
+        .map(|c| {
+            let el = |l: usize| c.get(l).unwrap_or(&c[0]);
+            ElementBlock {
+                dm_inv: Mat2Lanes::from_mats(&std::array::from_fn(|l| el(l).dm_inv)),
+                area: Lanes(std::array::from_fn(|l| el(l).area)),
+                idx: std::array::from_fn(|k| std::array::from_fn(|l| el(l).idx[k])),
+            }
+        })
+        .collect()
+}
+
+/// Forces of one block: on vertices 0, 1 and 2 of every lane, and `det F` per lane.
+struct BlockForces {
+    f: [[Lanes; 2]; 3],
+    det: Lanes,
+}
+
+/// The batched element kernel: gather, `F = Ds Dm^-1`, [`Energy::pk1_lanes`], and the nodal
+/// forces `-a P g_j` (`g_1`, `g_2` the rows of `Dm^-1`, `g_0 = -(g_1 + g_2)`), all lane-wise.
+/// Each lane performs exactly the operations of the scalar [`deformation_gradient`] and
+/// [`energy_gradients`].
+#[inline(always)]
+fn block_forces<E: Energy>(energy: &E, b: &ElementBlock, x: &[Vec2]) -> BlockForces {
+    let [i0, i1, i2] = &b.idx;
+    let gather = |idx: &[u32; LANES], c: usize| {
+        let mut out = [0.0; LANES];
+        for (o, &i) in out.iter_mut().zip(idx) {
+            *o = x[i as usize][c];
+        }
+        Lanes(out)
+    };
+    let (x0, y0) = (gather(i0, 0), gather(i0, 1));
+    let (e1x, e1y) = (gather(i1, 0) - x0, gather(i1, 1) - y0);
+    let (e2x, e2y) = (gather(i2, 0) - x0, gather(i2, 1) - y0);
+    let d = &b.dm_inv;
+    let (d00, d10, d01, d11) = (d.m00(), d.m10(), d.m01(), d.m11());
+    let f = Mat2Lanes([
+        e1x * d00 + e2x * d10,
+        e1y * d00 + e2y * d10,
+        e1x * d01 + e2x * d11,
+        e1y * d01 + e2y * d11,
+    ]);
+    let p = energy.pk1_lanes(&f);
+    let (p00, p10, p01, p11) = (p.m00(), p.m10(), p.m01(), p.m11());
+    let a = b.area;
+    let f1 = [
+        -((p00 * d00 + p01 * d01) * a),
+        -((p10 * d00 + p11 * d01) * a),
+    ];
+    let f2 = [
+        -((p00 * d10 + p01 * d11) * a),
+        -((p10 * d10 + p11 * d11) * a),
+    ];
+    let f0 = [-(f1[0] + f2[0]), -(f1[1] + f2[1])];
+    BlockForces {
+        f: [f0, f1, f2],
+        det: f.determinant(),
+    }
+}
+
+impl BlockForces {
+    /// The force on corner `c` of lane `l`.
+    #[inline(always)]
+    fn at(&self, c: usize, l: usize) -> Vec2 {
+        Vec2::new(self.f[c][0].0[l], self.f[c][1].0[l])
+    }
+}
+
+/// Inversion statistics kept per lane over full blocks (merged at the end; min and counts are
+/// exact, so the merge order does not matter).
+#[derive(Clone, Copy)]
+struct LaneInversion {
+    min: Lanes,
+    inverted: Lanes,
+}
+
+impl LaneInversion {
+    const EMPTY: LaneInversion = LaneInversion {
+        min: Lanes([Real::INFINITY; LANES]),
+        inverted: Lanes([0.0; LANES]),
+    };
+
+    #[inline(always)]
+    fn add(&mut self, j: Lanes) {
+        self.min = self.min.zip_with(j, Real::min);
+        self.inverted = self
+            .inverted
+            .zip_with(j, |n, j| if j <= 0.0 { n + 1.0 } else { n });
+    }
+
+    fn finish(self, mut inv: Inversion) -> Inversion {
+        for l in 0..LANES {
+            inv.min_det_f = inv.min_det_f.min(self.min.0[l]);
+            inv.inverted += self.inverted.0[l] as usize;
+        }
+        inv
+    }
+}
+
+/// Evaluate `blocks` (the first of which holds element `first`, `n_elements` valid elements
+/// in all) and hand every corner's force to `scatter(element, corner, vertex, force)` in
+/// element order.
+#[inline(always)]
+fn blocks_forces<E: Energy>(
+    energy: &E,
+    blocks: &[ElementBlock],
+    n_elements: usize,
+    x: &[Vec2],
+    mut scatter: impl FnMut(usize, usize, Vec2),
+) -> Inversion {
+    let mut lanes = LaneInversion::EMPTY;
+    let mut tail = Inversion::EMPTY;
+    for (k, b) in blocks.iter().enumerate() {
+        let bf = block_forces(energy, b, x);
+        let valid = (n_elements - k * LANES).min(LANES);
+        if valid == LANES {
+            lanes.add(bf.det);
+        } else {
+            (0..valid).for_each(|l| tail.add(bf.det.0[l]));
+        }
+        for l in 0..valid {
+            for c in 0..3 {
+                scatter(k * LANES + l, c, bf.at(c, l));
+            }
+        }
+    }
+    lanes.finish(tail)
+}
 
 /// Elastic forces `f = -dE/dx` into `f` (overwritten), serial scatter in element order.
-///
-/// Elements are evaluated in blocks of [`BLOCK`] into a small buffer and then scattered: the
-/// evaluation loop has no stores into `f`, so the out-of-order core overlaps the long-latency
-/// parts of consecutive elements (`ln`, divisions); the sums are formed in element order as in
-/// a plain scatter loop.
+/// `blocks` are the mesh's triangles in triangle order ([`pack_blocks`]).
 pub(crate) fn forces_serial<E: Energy>(
     energy: &E,
-    elements: &[PackedElement],
+    blocks: &[ElementBlock],
+    mesh: &Mesh,
     x: &[Vec2],
     f: &mut [Vec2],
 ) -> Inversion {
     f.fill(Vec2::zeros());
-    let mut inv = Inversion::EMPTY;
-    let mut buf = [[Vec2::zeros(); 2]; BLOCK];
-    for block in elements.chunks(BLOCK) {
-        for (b, el) in buf.iter_mut().zip(block) {
-            let (fe, j) = element_forces(energy, el, x);
-            inv.add(j);
-            *b = fe;
-        }
-        for (&[f1, f2], el) in buf.iter().zip(block) {
-            let [i0, i1, i2] = el.idx;
-            f[i0 as usize] += -(f1 + f2);
-            f[i1 as usize] += f1;
-            f[i2 as usize] += f2;
-        }
-    }
-    inv
+    let tris = mesh.triangles();
+    blocks_forces(energy, blocks, tris.len(), x, |e, c, fc| {
+        f[tris[e][c] as usize] += fc;
+    })
 }
 
-/// Elastic forces on the current rayon pool, bit-identical to [`forces_serial`]; `buf` is the
-/// per-element workspace (resized here). With one thread it runs [`forces_serial`].
+/// Elastic forces on the current rayon pool, bit-identical to [`forces_serial`] for any
+/// number of threads. With one thread it runs [`forces_serial`]; otherwise it follows the
+/// mesh's [`ScatterPlan`](fem_core::partition::ScatterPlan): each chunk of
+/// [`PLAN_CHUNK`] triangles adds its forces straight into the vertices it owns and stores
+/// the others in `slots` (resized here), which are then summed per shared vertex in triangle
+/// order. Every vertex thus sums the same terms in the same order from the same zero as the
+/// serial scatter.
 pub(crate) fn forces<E: Energy>(
     energy: &E,
-    elements: &[PackedElement],
-    adjacency: &VertexAdjacency,
+    blocks: &[ElementBlock],
+    mesh: &Mesh,
     x: &[Vec2],
     f: &mut [Vec2],
-    buf: &mut Vec<[Vec2; 2]>,
+    slots: &mut Vec<Vec2>,
 ) -> Inversion {
     if rayon::current_num_threads() == 1 {
-        return forces_serial(energy, elements, x, f);
+        return forces_serial(energy, blocks, mesh, x, f);
     }
-    buf.resize(elements.len(), [Vec2::zeros(); 2]);
-    let inv = buf
-        .par_chunks_mut(ELEMENT_CHUNK)
-        .zip(elements.par_chunks(ELEMENT_CHUNK))
-        .map(|(out, els)| {
-            let mut inv = Inversion::EMPTY;
-            for (o, el) in out.iter_mut().zip(els) {
-                let (fe, j) = element_forces(energy, el, x);
-                inv.add(j);
-                *o = fe;
-            }
-            inv
-        })
-        .reduce(|| Inversion::EMPTY, Inversion::merge);
-    let buf = &buf[..];
-    f.par_chunks_mut(VERTEX_CHUNK)
-        .enumerate()
-        .for_each(|(c, fs)| {
-            for (k, fv) in fs.iter_mut().enumerate() {
-                let mut s = Vec2::zeros();
-                for &(e, corner) in adjacency.of(c * VERTEX_CHUNK + k) {
-                    let [f1, f2] = buf[e as usize];
-                    s += match corner {
-                        0 => -(f1 + f2),
-                        1 => f1,
-                        _ => f2,
-                    };
-                }
-                *fv = s;
+    let plan = mesh.scatter_plan();
+    let n = mesh.n_triangles();
+    slots.resize(plan.n_slots(), Vec2::zeros());
+    let total = Mutex::new(Inversion::EMPTY);
+    for_each_chunk(plan, f, slots, &|k, owned, slots| {
+        owned.fill(Vec2::zeros());
+        let first = k * PLAN_CHUNK;
+        let base = plan.slot_range(k).start;
+        let bs = &blocks[first / LANES..(first + PLAN_CHUNK).min(n).div_ceil(LANES)];
+        let inv = blocks_forces(energy, bs, n - first, x, |e, c, fc| {
+            match plan.targets(first + e)[c] {
+                Target::Owned(i) => owned[i] += fc,
+                Target::Shared(s) => slots[s - base] = fc,
             }
         });
-    inv
+        let mut t = total.lock().unwrap_or_else(|p| p.into_inner());
+        *t = Inversion::merge(*t, inv);
+    });
+    for (v, vs) in plan.shared() {
+        f[v] = vs
+            .iter()
+            .fold(Vec2::zeros(), |acc, &s| acc + slots[s as usize]);
+    }
+    total.into_inner().unwrap_or_else(|p| p.into_inner())
 }
 
 /// Total elastic energy `sum_e a_e psi(F_e)`, summed in element order (parallel evaluation into
@@ -218,4 +344,66 @@ pub(crate) fn elastic_energy<E: Energy>(
             }
         });
     buf.iter().fold(0.0, |acc, &e| acc + e)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::testing::rectangle_mesh;
+    use fem_core::PlaneModel;
+    use fem_core::energy::NeoHookean;
+    use fem_core::material::Material;
+
+    /// The plain per-element loop the batched kernel must reproduce bit for bit.
+    fn reference<E: Energy>(energy: &E, elements: &[PackedElement], x: &[Vec2]) -> Vec<Vec2> {
+        let mut f = vec![Vec2::zeros(); x.len()];
+        for el in elements {
+            let (g1, g2) = energy_gradients(el, &energy.pk1(&deformation_gradient(el, x)));
+            let (f1, f2) = (-g1, -g2);
+            let [i0, i1, i2] = el.idx.map(|i| i as usize);
+            f[i0] += -(f1 + f2);
+            f[i1] += f1;
+            f[i2] += f2;
+        }
+        f
+    }
+
+    #[test]
+    fn batched_and_parallel_forces_equal_the_per_element_loop_bit_for_bit() {
+        // 2 x 47 x 23 = 2162 triangles: two scatter-plan chunks and a partial last block.
+        let mesh = rectangle_mesh(Vec2::zeros(), 5.0, 1.0, 47, 23).unwrap();
+        assert_eq!(mesh.n_triangles() % LANES, 2);
+        let lame = Material::new(1000.0, 0.3, 1.0)
+            .unwrap()
+            .lame(PlaneModel::PlaneStrain);
+        let energy = NeoHookean::new(lame);
+        let elements = pack(&mesh);
+        let blocks = pack_blocks(&elements);
+        let x: Vec<Vec2> = mesh
+            .vertices()
+            .iter()
+            .map(|p| Vec2::new(p.x * (1.0 + 0.03 * p.y), p.y + 0.05 * (0.7 * p.x).sin()))
+            .collect();
+        let want = reference(&energy, &elements, &x);
+        let mut serial = vec![Vec2::zeros(); x.len()];
+        let inv = forces_serial(&energy, &blocks, &mesh, &x, &mut serial);
+        assert_eq!(serial, want);
+        assert_eq!(inv.inverted, 0);
+        let min = elements
+            .iter()
+            .map(|el| deformation_gradient(el, &x).determinant())
+            .fold(Real::INFINITY, Real::min);
+        assert_eq!(inv.min_det_f, min);
+        for threads in [2, 3] {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            let mut par = vec![Vec2::zeros(); x.len()];
+            let mut slots = Vec::new();
+            let pinv = pool.install(|| forces(&energy, &blocks, &mesh, &x, &mut par, &mut slots));
+            assert_eq!(par, want, "{threads} threads");
+            assert_eq!(pinv, inv);
+        }
+    }
 }

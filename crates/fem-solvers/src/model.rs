@@ -12,7 +12,7 @@ use fem_core::mesh::Mesh;
 use crate::bc::{Kinematics, PrescribedMotion, Region};
 use crate::contact::{ContactParams, Ground, Obstacle, ObstacleMotion};
 use crate::error::{SolverError, check_finite_vec, check_positive};
-use crate::kernel::{PackedElement, pack};
+use crate::kernel::{ElementBlock, PackedElement, pack, pack_blocks};
 
 /// Standard gravity used by [`Model::with_standard_gravity`], m/s^2 (the peers use 9.8).
 pub const STANDARD_GRAVITY: Real = 9.8;
@@ -34,6 +34,8 @@ pub struct Model<E: Energy> {
     obstacles: Vec<Obstacle>,
     contact: ContactParams,
     pub(crate) elements: Vec<PackedElement>,
+    /// The same elements in blocks for the batched force kernel (triangle order).
+    pub(crate) blocks: Vec<ElementBlock>,
     modulus: Real,
 }
 
@@ -66,8 +68,10 @@ impl<E: Energy> Model<E> {
                 "the energy's rest stiffness must be finite and > 0",
             ));
         }
+        let elements = pack(&mesh);
         Ok(Model {
-            elements: pack(&mesh),
+            blocks: pack_blocks(&elements),
+            elements,
             mesh,
             energy,
             masses,
