@@ -257,19 +257,48 @@ fn integrate(
     x_new: &mut [Vec2],
     v_new: &mut [Vec2],
 ) -> bool {
+    match scheme {
+        ExplicitScheme::SymplecticEuler => {
+            integrate_with::<true>(dt, decay, g, x, v, f, w, x_new, v_new)
+        }
+        ExplicitScheme::ForwardEuler => {
+            integrate_with::<false>(dt, decay, g, x, v, f, w, x_new, v_new)
+        }
+    }
+}
+
+/// [`integrate`] for one scheme (`SYMPLECTIC`: position from the new velocity), so the loop
+/// body has no branch; zipped iterators, so it has no bounds checks either.
+#[allow(clippy::too_many_arguments)]
+fn integrate_with<const SYMPLECTIC: bool>(
+    dt: Real,
+    decay: Real,
+    g: Vec2,
+    x: &[Vec2],
+    v: &[Vec2],
+    f: &[Vec2],
+    w: &[Real],
+    x_new: &mut [Vec2],
+    v_new: &mut [Vec2],
+) -> bool {
     let chunk =
         |xn: &mut [Vec2], vn: &mut [Vec2], x: &[Vec2], v: &[Vec2], f: &[Vec2], w: &[Real]| {
+            // One running flag: the sum of a vertex's four values is finite when they all are
+            // (a finite sum that overflows only raises a false alarm, which the caller's
+            // per-vertex scan then clears).
             let mut ok = true;
-            for i in 0..xn.len() {
-                let vi = v[i];
-                let v1 = (vi + (f[i] * w[i] + g) * dt) * decay;
-                let x1 = match scheme {
-                    ExplicitScheme::SymplecticEuler => x[i] + v1 * dt,
-                    ExplicitScheme::ForwardEuler => x[i] + vi * dt,
+            for (((((xn, vn), &xi), &vi), &fi), &wi) in
+                xn.iter_mut().zip(vn).zip(x).zip(v).zip(f).zip(w)
+            {
+                let v1 = (vi + (fi * wi + g) * dt) * decay;
+                let x1 = if SYMPLECTIC {
+                    xi + v1 * dt
+                } else {
+                    xi + vi * dt
                 };
                 ok &= (x1.x + x1.y + v1.x + v1.y).is_finite();
-                xn[i] = x1;
-                vn[i] = v1;
+                *xn = x1;
+                *vn = v1;
             }
             ok
         };
