@@ -32,8 +32,9 @@
 //! strains below about `1e-7`). A NaN `psi` is not skipped, so blow-ups surface.
 //!
 //! **Orderings** ([`Ordering`]): plain Gauss-Seidel in triangle order (serial); coloured
-//! Gauss-Seidel (triangles grouped by a greedy colouring, each colour projected in parallel;
-//! default); Jacobi (every constraint from the same positions, corrections summed per vertex).
+//! Gauss-Seidel (triangles grouped by a greedy colouring; each colour's corrections are
+//! computed in parallel over its triangles, then applied in parallel over vertex chunks through
+//! a per-colour vertex-sorted corner list; default); Jacobi (every constraint from the same positions, corrections summed per vertex).
 //! Jacobi scales each constraint's step (its `dlambda` and so its `dx` alike) by
 //! `relaxation / max_j n_j`, with `n_j` the number of triangles at vertex `j`: unlike
 //! per-vertex averaging of `dx` alone, this keeps positions and multipliers consistent, so
@@ -358,7 +359,72 @@ struct Engine {
     /// Per element (Jacobi only): `relaxation / max_j n_j`, with `n_j` the number of
     /// triangles at vertex `j`.
     jacobi_scale: Vec<Real>,
+    /// Coloured ordering only: the parallel application of a colour's corrections as a
+    /// per-vertex gather (see [`ColourScatter`]).
+    colour_scatter: ColourScatter,
     bodies_pred: Vec<BodyState>,
+}
+
+/// For each colour, the corners of its triangles sorted by vertex, so a colour's corrections
+/// can be applied by disjoint vertex chunks in parallel. Within a colour every vertex belongs
+/// to at most one triangle, so each vertex receives at most one correction per colour and the
+/// order of application cannot change the result: it equals the serial in-place sweep.
+#[derive(Clone, Debug, Default)]
+struct ColourScatter {
+    /// `(vertex, 3 * t + corner)` with `t` the triangle's position within its colour, sorted
+    /// by vertex within each colour.
+    corners: Vec<(u32, u32)>,
+    /// Per colour, `n_vertex_chunks + 1` offsets into `corners`: chunk `c` of the colour's
+    /// corners holds the vertices in `[c * VERTEX_CHUNK, (c + 1) * VERTEX_CHUNK)`.
+    offsets: Vec<Vec<usize>>,
+}
+
+impl ColourScatter {
+    fn new(elements: &[PackedElement], ranges: &[(usize, usize)], n_vertices: usize) -> Self {
+        let n_chunks = n_vertices.div_ceil(VERTEX_CHUNK);
+        let mut corners = Vec::with_capacity(3 * elements.len());
+        let mut offsets = Vec::with_capacity(ranges.len());
+        for &(a, b) in ranges {
+            let start = corners.len();
+            for (t, el) in elements[a..b].iter().enumerate() {
+                for (k, &v) in el.idx.iter().enumerate() {
+                    corners.push((v, (3 * t + k) as u32));
+                }
+            }
+            let colour = &mut corners[start..];
+            colour.sort_unstable();
+            debug_assert!(
+                colour.windows(2).all(|w| w[0].0 < w[1].0),
+                "colour shares a vertex"
+            );
+            let colour = &corners[start..];
+            offsets.push(
+                (0..=n_chunks)
+                    .map(|c| {
+                        start + colour.partition_point(|&(v, _)| (v as usize) < c * VERTEX_CHUNK)
+                    })
+                    .collect(),
+            );
+        }
+        ColourScatter { corners, offsets }
+    }
+
+    /// Add colour `colour`'s corrections `corr` (indexed by position within the colour) to
+    /// `x`, in parallel over vertex chunks.
+    fn apply(&self, colour: usize, corr: &[Projection], x: &mut [Vec2]) {
+        let offs = &self.offsets[colour];
+        x.par_chunks_mut(VERTEX_CHUNK)
+            .enumerate()
+            .for_each(|(c, xs)| {
+                let base = c * VERTEX_CHUNK;
+                for &(v, slot) in &self.corners[offs[c]..offs[c + 1]] {
+                    let p = &corr[(slot / 3) as usize];
+                    if p.active {
+                        xs[v as usize - base] += p.dx[(slot % 3) as usize];
+                    }
+                }
+            });
+    }
 }
 
 impl Engine {
@@ -412,15 +478,19 @@ impl Engine {
             ordering,
             rule,
             n_triangles: mesh.n_triangles(),
-            elements,
-            ranges,
             n_colours,
             lambda: Vec::new(),
             x_pred: Vec::new(),
             v_new: Vec::new(),
             corrections: Vec::new(),
             chunk_stats: Vec::new(),
+            colour_scatter: match ordering {
+                Ordering::Coloured => ColourScatter::new(&elements, &ranges, mesh.n_vertices()),
+                _ => ColourScatter::default(),
+            },
             jacobi_scale,
+            elements,
+            ranges,
             bodies_pred: Vec::new(),
         }
     }
@@ -612,7 +682,7 @@ impl Engine {
                 );
             }
             Ordering::Coloured => {
-                for &(a, b) in &self.ranges {
+                for (colour, &(a, b)) in self.ranges.iter().enumerate() {
                     let els = &self.elements[a..b];
                     let lam = &mut self.lambda[a..b];
                     if parallel {
@@ -632,9 +702,11 @@ impl Engine {
                                     st.add(o);
                                 }
                             });
-                        for (el, p) in els.iter().zip(&self.corrections) {
-                            apply(&mut self.x_pred, el, p);
-                        }
+                        self.colour_scatter.apply(
+                            colour,
+                            &self.corrections[..els.len()],
+                            &mut self.x_pred,
+                        );
                         for st in &self.chunk_stats {
                             total.merge(st);
                         }
