@@ -25,7 +25,7 @@ use crate::kernel::{self, VERTEX_CHUNK};
 use crate::model::{Model, TimeStepCheck};
 use crate::report::StepReport;
 use crate::state::State;
-use crate::{Stepper, first_non_finite};
+use crate::{Stepper, check_finite};
 
 /// Which explicit update.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -186,19 +186,14 @@ impl Stepper for ExplicitStepper {
             .kinematics()
             .apply(t, dt, &state.x, &mut self.x_new, &mut self.v_new);
         if !all_finite {
-            if let Some(vertex) = first_non_finite(&self.x_new, &self.v_new) {
-                return Err(SolverError::NonFinite {
-                    step: state.step,
-                    time: t,
-                    vertex,
-                    x: self.x_new[vertex].x,
-                    y: self.x_new[vertex].y,
-                    vx: self.v_new[vertex].x,
-                    vy: self.v_new[vertex].y,
-                    inverted: inv.inverted,
-                    min_det_f: inv.min_det_f,
-                });
-            }
+            check_finite(
+                state.step,
+                t,
+                &self.x_new,
+                &self.v_new,
+                inv.inverted,
+                inv.min_det_f,
+            )?;
         }
         self.bodies_new.clone_from(&state.bodies);
         for (o, (obs, body)) in model

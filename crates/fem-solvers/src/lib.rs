@@ -100,3 +100,29 @@ pub(crate) fn first_non_finite(x: &[Vec2], v: &[Vec2]) -> Option<usize> {
         !(p.x.is_finite() && p.y.is_finite() && q.x.is_finite() && q.y.is_finite())
     })
 }
+
+/// [`SolverError::NonFinite`] for the first bad vertex of a proposed new state, if any; the
+/// step number, time and inversion statistics go into the message.
+pub(crate) fn check_finite(
+    step: u64,
+    time: Real,
+    x: &[Vec2],
+    v: &[Vec2],
+    inverted: usize,
+    min_det_f: Real,
+) -> Result<(), SolverError> {
+    match first_non_finite(x, v) {
+        None => Ok(()),
+        Some(vertex) => Err(SolverError::NonFinite {
+            step,
+            time,
+            vertex,
+            x: x[vertex].x,
+            y: x[vertex].y,
+            vx: v[vertex].x,
+            vy: v[vertex].y,
+            inverted,
+            min_det_f,
+        }),
+    }
+}

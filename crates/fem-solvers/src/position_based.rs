@@ -56,7 +56,7 @@ use crate::kernel::{
 use crate::model::Model;
 use crate::report::StepReport;
 use crate::state::State;
-use crate::{Stepper, first_non_finite};
+use crate::{Stepper, check_finite};
 
 /// The order in which triangle constraints are projected.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -613,19 +613,14 @@ impl Engine {
             .kinematics()
             .apply(t, h, &state.x, &mut self.x_pred, &mut self.v_new);
         if !all_finite {
-            if let Some(vertex) = first_non_finite(&self.x_pred, &self.v_new) {
-                return Err(SolverError::NonFinite {
-                    step: state.step,
-                    time: t,
-                    vertex,
-                    x: self.x_pred[vertex].x,
-                    y: self.x_pred[vertex].y,
-                    vx: self.v_new[vertex].x,
-                    vy: self.v_new[vertex].y,
-                    inverted: stats.inv.inverted,
-                    min_det_f: stats.inv.min_det_f,
-                });
-            }
+            check_finite(
+                state.step,
+                t,
+                &self.x_pred,
+                &self.v_new,
+                stats.inv.inverted,
+                stats.inv.min_det_f,
+            )?;
         }
         for (o, (obs, (pred, body))) in model
             .obstacles()
