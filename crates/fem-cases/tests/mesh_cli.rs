@@ -124,6 +124,17 @@ fn bad_input_is_a_one_line_error_without_output() {
             "coincides",
         ),
         (vec!["--builtin-body", "--scale", "0"], "--scale"),
+        (
+            vec![
+                "--builtin-body",
+                "--min-angle",
+                "50",
+                "--max-steiner",
+                "200",
+                "--require-quality",
+            ],
+            "requested quality not met",
+        ),
     ];
     for (extra, needle) in cases {
         let mut args = vec!["mesh", "-o", arg(&json)];

@@ -180,9 +180,29 @@ pub fn run(args: &MeshArgs) -> Result<(), String> {
         surface.vertices.len(),
         surface.triangles.len()
     );
+    if args.min_angle > 30.0 {
+        eprintln!(
+            "warning: --min-angle {} is above 30 degrees, where Delaunay refinement is not \
+             guaranteed to terminate; it will stop at --max-steiner points",
+            args.min_angle
+        );
+    }
     let out = mesh_surface(surface, &params).map_err(|e| e.to_string())?;
     print_summary(&out);
 
+    if !out.triangulate_report.quality_met() {
+        let t = &out.triangulate_report;
+        let what = format!(
+            "requested quality not met (min angle {:.2} deg, max area {:.4e}, refinement complete: {})",
+            t.min_angle_deg, t.max_area, t.refinement_complete
+        );
+        // Checked before any mesh file is written: with --require-quality a failed run leaves
+        // no mesh behind.
+        if args.require_quality {
+            return Err(what);
+        }
+        eprintln!("warning: {what}");
+    }
     if let Some(path) = &args.output {
         write_mesh_json(path, &out.mesh).map_err(|e| e.to_string())?;
         println!("wrote {}", path.display());
@@ -210,14 +230,6 @@ pub fn run(args: &MeshArgs) -> Result<(), String> {
         };
         write_previews(dir, &stages, &preview).map_err(|e| e.to_string())?;
         println!("wrote {} in {}", PREVIEW_FILES.join(", "), dir.display());
-    }
-    if args.require_quality && !out.triangulate_report.quality_met() {
-        return Err(format!(
-            "requested quality not met (min angle {:.2} deg, max area {:.4e}, refinement complete: {})",
-            out.triangulate_report.min_angle_deg,
-            out.triangulate_report.max_area,
-            out.triangulate_report.refinement_complete
-        ));
     }
     Ok(())
 }
