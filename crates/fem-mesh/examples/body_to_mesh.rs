@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 use fem_mesh::body::human_body;
 use fem_mesh::load::{LoadOptions, load_model};
 use fem_mesh::pipeline::{PipelineParams, mesh_surface};
-use fem_mesh::preview::{PreviewParams, Stages, write_previews};
+use fem_mesh::preview::{PreviewParams, write_previews};
 use fem_mesh::triangulate::TriangulateParams;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -44,14 +44,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     println!("stage times: {:?}", out.times);
 
     let dir = PathBuf::from("out/body_to_mesh");
-    let stages = Stages {
-        points: &out.points,
-        alpha_triangles: &out.alpha.triangles,
-        alpha_points: &out.alpha.points,
-        alpha_polygons: &out.alpha.polygons,
-        simplified: &out.simplified,
-        mesh: &out.mesh,
-    };
+    let stages = out.stages();
     write_previews(&dir, &stages, &PreviewParams::default())?;
     fem_mesh::io::write_mesh_json(&dir.join("mesh.json"), &out.mesh)?;
     println!("wrote {}", dir.display());

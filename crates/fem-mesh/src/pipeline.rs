@@ -9,6 +9,7 @@ use crate::alpha::{AlphaParams, AlphaShape, alpha_shape};
 use crate::camera::{Camera, ProjectionParams, project_points};
 use crate::error::{MeshError, Result};
 use crate::load::{LoadOptions, load_model};
+use crate::preview::Stages;
 use crate::quality::QualityReport;
 use crate::simplify::{SimplifyParams, SimplifyReport, simplify_polygon};
 use crate::triangulate::{TriangulateParams, TriangulateReport, triangulate};
@@ -101,6 +102,20 @@ pub struct PipelineOutput {
     pub quality: QualityReport,
     /// Wall time per stage.
     pub times: StageTimes,
+}
+
+impl PipelineOutput {
+    /// The four stages, borrowed, for [`crate::preview::write_previews`].
+    pub fn stages(&self) -> Stages<'_> {
+        Stages {
+            points: &self.points,
+            alpha_triangles: &self.alpha.triangles,
+            alpha_points: &self.alpha.points,
+            alpha_polygons: &self.alpha.polygons,
+            simplified: &self.simplified,
+            mesh: &self.mesh,
+        }
+    }
 }
 
 /// Runs the pipeline on the model file at `path`.

@@ -9,33 +9,21 @@ use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use fem_core::PlaneModel;
 use fem_core::energy::{Corotational, Energy, NeoHookean, Stvk};
 use fem_core::material::Material;
-use fem_core::math::Vec2;
-use fem_solvers::testing::{beam_cells_for, beam_mesh};
+use fem_solvers::testing::{self, beam_cells_for, beam_mesh, cantilever};
 use fem_solvers::{
-    ExplicitParams, ExplicitStepper, Model, PbdParams, PbdStepper, Region, State, Stepper,
-    XpbdParams, XpbdStepper,
+    ExplicitParams, ExplicitStepper, Model, PbdParams, PbdStepper, State, Stepper, XpbdParams,
+    XpbdStepper,
 };
 
 const TRIANGLES: usize = 16_000;
 
 fn model<E: Energy>(energy: E) -> Model<E> {
     let (nx, ny) = beam_cells_for(TRIANGLES);
-    let mut m = Model::with_total_mass(beam_mesh(nx, ny).unwrap(), energy, 1.0)
-        .unwrap()
-        .with_standard_gravity();
-    m.pin(&Region::in_box(Vec2::new(0.0, 0.0), Vec2::new(0.0, 1.0)))
-        .unwrap();
-    m
+    cantilever(beam_mesh(nx, ny).unwrap(), energy).unwrap()
 }
 
 fn stretched<E: Energy>(m: &Model<E>) -> State {
-    let x = m
-        .mesh()
-        .vertices()
-        .iter()
-        .map(|p| Vec2::new(1.01 * p.x, p.y))
-        .collect();
-    State::new(m, x, vec![Vec2::zeros(); m.mesh().n_vertices()]).unwrap()
+    testing::stretched(m, 1.01).unwrap()
 }
 
 fn bench_stepper<E: Energy, S: Stepper>(c: &mut Criterion, name: &str, m: &Model<E>, mut s: S) {

@@ -14,9 +14,8 @@ use std::time::Instant;
 use fem_core::PlaneModel;
 use fem_core::energy::{Energy, EnergyKind};
 use fem_core::material::Material;
-use fem_core::math::Vec2;
-use fem_solvers::testing::{beam_mesh, node_index};
-use fem_solvers::{ExplicitParams, ExplicitStepper, Model, Region, State, Stepper};
+use fem_solvers::testing::{beam_mesh, cantilever, node_index};
+use fem_solvers::{ExplicitParams, ExplicitStepper, State, Stepper};
 
 /// Paper Table 1, tip vertical displacement in mm (downwards) at frames 10, 50, 120, 200.
 const PAPER: [(&str, [f64; 4]); 3] = [
@@ -62,12 +61,7 @@ fn main() {
                 std::process::exit(2)
             }
         };
-        let mut model = Model::with_total_mass(mesh, energy, 1.0)
-            .expect("valid model")
-            .with_standard_gravity();
-        model
-            .pin(&Region::in_box(Vec2::new(0.0, 0.0), Vec2::new(0.0, 1.0)))
-            .expect("left edge exists");
+        let model = cantilever(mesh, energy).expect("the case A set-up is valid");
         let params = ExplicitParams {
             dt: 1e-3,
             damping,

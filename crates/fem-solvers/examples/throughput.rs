@@ -20,11 +20,10 @@ use std::time::Instant;
 use fem_core::PlaneModel;
 use fem_core::energy::{Corotational, Energy, NeoHookean, Stvk};
 use fem_core::material::Material;
-use fem_core::math::Vec2;
-use fem_solvers::testing::{beam_cells_for, beam_mesh};
+use fem_solvers::testing::{self, beam_cells_for, beam_mesh, cantilever};
 use fem_solvers::{
-    ExplicitParams, ExplicitStepper, Model, PbdParams, PbdStepper, Region, State, Stepper,
-    XpbdParams, XpbdStepper,
+    ExplicitParams, ExplicitStepper, Model, PbdParams, PbdStepper, State, Stepper, XpbdParams,
+    XpbdStepper,
 };
 
 struct Options {
@@ -68,25 +67,15 @@ fn parse() -> Result<Options, String> {
 
 fn model<E: Energy>(energy: E, triangles: usize) -> Model<E> {
     let (nx, ny) = beam_cells_for(triangles);
-    let mut m = Model::with_total_mass(beam_mesh(nx, ny).unwrap(), energy, 1.0)
-        .unwrap()
-        .with_standard_gravity();
-    m.pin(&Region::in_box(Vec2::new(0.0, 0.0), Vec2::new(0.0, 1.0)))
-        .unwrap();
-    m
+    cantilever(beam_mesh(nx, ny).expect("beam sizes are positive"), energy)
+        .expect("the case A set-up is valid")
 }
 
 /// The beam stretched by 1% along x and at rest: every constraint is active from the first
 /// step (at the rest state PBD/XPBD skip constraints below the rest threshold, which would
 /// flatter their timings).
 fn stretched<E: Energy>(model: &Model<E>) -> State {
-    let x = model
-        .mesh()
-        .vertices()
-        .iter()
-        .map(|p| Vec2::new(1.01 * p.x, p.y))
-        .collect();
-    State::new(model, x, vec![Vec2::zeros(); model.mesh().n_vertices()]).unwrap()
+    testing::stretched(model, 1.01).expect("stretched state matches the model")
 }
 
 /// Best-of-`repeat` seconds per step over about `seconds` of stepping from `start`.

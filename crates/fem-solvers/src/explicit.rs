@@ -25,7 +25,7 @@ use crate::kernel::{self, VERTEX_CHUNK};
 use crate::model::{Model, TimeStepCheck};
 use crate::report::StepReport;
 use crate::state::State;
-use crate::{Stepper, check_finite};
+use crate::{Stepper, check_finite, check_step_inputs};
 
 /// Which explicit update.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -128,13 +128,7 @@ impl Stepper for ExplicitStepper {
         model: &Model<E>,
         state: &mut State,
     ) -> Result<StepReport, SolverError> {
-        if model.mesh().n_triangles() != self.n_triangles {
-            return Err(SolverError::ModelMismatch {
-                got: model.mesh().n_triangles(),
-                expected: self.n_triangles,
-            });
-        }
-        state.check_matches(model)?;
+        check_step_inputs(model, self.n_triangles, state)?;
         let n = state.x.len();
         self.f.resize(n, Vec2::zeros());
         self.x_new.resize(n, Vec2::zeros());

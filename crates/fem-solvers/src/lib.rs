@@ -94,6 +94,22 @@ pub trait Stepper {
     ) -> Result<StepReport, SolverError>;
 }
 
+/// The checks every stepper makes before a step: the model is the one the stepper was built
+/// for (same triangle count) and the state matches the model.
+pub(crate) fn check_step_inputs<E: Energy>(
+    model: &Model<E>,
+    n_triangles: usize,
+    state: &State,
+) -> Result<(), SolverError> {
+    if model.mesh().n_triangles() != n_triangles {
+        return Err(SolverError::ModelMismatch {
+            got: model.mesh().n_triangles(),
+            expected: n_triangles,
+        });
+    }
+    state.check_matches(model)
+}
+
 /// The first vertex whose position or velocity is not finite.
 pub(crate) fn first_non_finite(x: &[Vec2], v: &[Vec2]) -> Option<usize> {
     x.iter().zip(v).position(|(p, q)| {

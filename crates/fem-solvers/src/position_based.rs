@@ -56,7 +56,7 @@ use crate::kernel::{
 use crate::model::Model;
 use crate::report::StepReport;
 use crate::state::State;
-use crate::{Stepper, check_finite};
+use crate::{Stepper, check_finite, check_step_inputs};
 
 /// The order in which triangle constraints are projected.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -512,13 +512,7 @@ impl Engine {
         model: &Model<E>,
         state: &mut State,
     ) -> Result<StepReport, SolverError> {
-        if model.mesh().n_triangles() != self.n_triangles {
-            return Err(SolverError::ModelMismatch {
-                got: model.mesh().n_triangles(),
-                expected: self.n_triangles,
-            });
-        }
-        state.check_matches(model)?;
+        check_step_inputs(model, self.n_triangles, state)?;
         let h = self.dt / self.substeps as Real;
         let mut report = StepReport::explicit(Real::INFINITY, 0, 0);
         for _ in 0..self.substeps {

@@ -6,8 +6,11 @@
 //! `(a, b, c)` and `(a, c, d)`, with `a = (i, j)`, `b = (i + 1, j)`, `c = (i + 1, j + 1)`,
 //! `d = (i, j + 1)`. Triangles are numbered cell by cell, `i` slowest.
 
+use fem_core::energy::Energy;
 use fem_core::math::{Real, Vec2};
 use fem_core::mesh::{Mesh, MeshError};
+
+use crate::{Model, Region, SolverError, State};
 
 /// Length of the case A beam, m.
 pub const BEAM_LENGTH: Real = 5.0;
@@ -67,6 +70,29 @@ pub fn node_index(i: usize, j: usize, ny: usize) -> usize {
 pub fn beam_cells_for(triangles: usize) -> (usize, usize) {
     let ny = ((triangles as Real / 10.0).sqrt().round() as usize).max(1);
     (5 * ny, ny)
+}
+
+/// The case A cantilever on a beam mesh (from [`beam_mesh`]): total mass 1 kg, standard
+/// gravity, left edge (`x = 0`) pinned.
+pub fn cantilever<E: Energy>(mesh: Mesh, energy: E) -> Result<Model<E>, SolverError> {
+    let mut model = Model::with_total_mass(mesh, energy, 1.0)?.with_standard_gravity();
+    model.pin(&Region::in_box(
+        Vec2::new(0.0, 0.0),
+        Vec2::new(0.0, BEAM_HEIGHT),
+    ))?;
+    Ok(model)
+}
+
+/// The model's rest shape stretched by `factor` along x, at rest: every element is strained,
+/// so no position-based constraint is skipped as being at rest.
+pub fn stretched<E: Energy>(model: &Model<E>, factor: Real) -> Result<State, SolverError> {
+    let x = model
+        .mesh()
+        .vertices()
+        .iter()
+        .map(|p| Vec2::new(factor * p.x, p.y))
+        .collect();
+    State::new(model, x, vec![Vec2::zeros(); model.mesh().n_vertices()])
 }
 
 #[cfg(test)]

@@ -10,7 +10,7 @@ use fem_mesh::camera::{Camera, Projection, ProjectionParams};
 use fem_mesh::io::{write_gmsh, write_mesh_json, write_vtk};
 use fem_mesh::load::{LoadOptions, load_model};
 use fem_mesh::pipeline::{PipelineOutput, PipelineParams, mesh_surface};
-use fem_mesh::preview::{PREVIEW_FILES, PreviewParams, Stages, write_previews};
+use fem_mesh::preview::{PREVIEW_FILES, PreviewParams, write_previews};
 use fem_mesh::triangulate::TriangulateParams;
 
 /// Preset viewing directions for a +Y-up, +Z-forward model.
@@ -216,14 +216,7 @@ pub fn run(args: &MeshArgs) -> Result<(), String> {
         println!("wrote {}", path.display());
     }
     if let Some(dir) = &args.preview {
-        let stages = Stages {
-            points: &out.points,
-            alpha_triangles: &out.alpha.triangles,
-            alpha_points: &out.alpha.points,
-            alpha_polygons: &out.alpha.polygons,
-            simplified: &out.simplified,
-            mesh: &out.mesh,
-        };
+        let stages = out.stages();
         let preview = PreviewParams {
             height_px: args.preview_height,
             ..PreviewParams::default()

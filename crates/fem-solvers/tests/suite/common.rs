@@ -5,8 +5,8 @@ use fem_core::PlaneModel;
 use fem_core::energy::Energy;
 use fem_core::material::{Lame, Material};
 use fem_core::math::{Real, Vec2};
+use fem_solvers::Model;
 use fem_solvers::testing::beam_mesh;
-use fem_solvers::{Model, Region};
 
 /// Case A material: E = 1000 Pa, nu = 0.3, plane strain.
 pub fn case_a_lame() -> Lame {
@@ -29,10 +29,7 @@ pub fn free_beam<E: Energy>(energy: E, nx: usize, ny: usize) -> Model<E> {
 
 /// The case A cantilever: left edge pinned, standard gravity.
 pub fn cantilever<E: Energy>(energy: E, nx: usize, ny: usize) -> Model<E> {
-    let mut m = free_beam(energy, nx, ny).with_standard_gravity();
-    m.pin(&Region::in_box(Vec2::new(0.0, 0.0), Vec2::new(0.0, 1.0)))
-        .unwrap();
-    m
+    fem_solvers::testing::cantilever(beam_mesh(nx, ny).unwrap(), energy).unwrap()
 }
 
 /// Bit patterns of a vector of points, for exact comparisons (`-0.0 != 0.0`, NaN == NaN).

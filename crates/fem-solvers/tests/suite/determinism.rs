@@ -4,21 +4,19 @@
 //! The mesh (160 x 32 cells, 10240 triangles) is large enough that the parallel paths split
 //! the elements, the colour classes and the vertices into several fixed-size chunks.
 
-use crate::common::{bits, case_a_lame, free_beam};
+use crate::common::{bits, cantilever, case_a_lame};
 use fem_core::energy::{Energy, NeoHookean, Stvk};
 use fem_core::math::Vec2;
 use fem_solvers::diagnostics::{EnergyScratch, energies};
 use fem_solvers::{
     ExplicitParams, ExplicitStepper, Ground, Model, ObstacleMotion, Ordering, PbdParams,
-    PbdStepper, Region, State, Stepper, XpbdForm, XpbdParams, XpbdStepper,
+    PbdStepper, State, Stepper, XpbdForm, XpbdParams, XpbdStepper,
 };
 
 /// A cantilever with a ground under its tip and a dynamic slab dropped on it, started from a
 /// sheared state so every vertex moves.
 fn scene<E: Energy>(energy: E) -> (Model<E>, State) {
-    let mut m = free_beam(energy, 160, 32).with_standard_gravity();
-    m.pin(&Region::in_box(Vec2::new(0.0, 0.0), Vec2::new(0.0, 1.0)))
-        .unwrap();
+    let mut m = cantilever(energy, 160, 32);
     m.set_ground(Some(Ground::horizontal(-0.01))).unwrap();
     m.add_obstacle(
         &[
