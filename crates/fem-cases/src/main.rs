@@ -16,6 +16,8 @@ struct Fem2d {
 
 #[derive(Debug, Subcommand)]
 enum Command {
+    /// Run one scene (a built-in case or a scene file) under one energy and solver.
+    Run(Box<cli::run::RunArgs>),
     /// Turn a 3D model (OBJ, STL, PLY or the built-in body) into a 2D FEM mesh.
     Mesh(Box<cli::mesh::MeshArgs>),
 }
@@ -23,12 +25,13 @@ enum Command {
 fn main() -> std::process::ExitCode {
     let args = Fem2d::parse();
     let result = match args.command {
+        Command::Run(a) => cli::run::run(&a),
         Command::Mesh(mesh) => cli::mesh::run(&mesh),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(message) => {
-            eprintln!("error: {message}");
+            eprintln!("error: {}", message.replace('\n', " "));
             std::process::ExitCode::FAILURE
         }
     }

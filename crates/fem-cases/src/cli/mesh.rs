@@ -3,7 +3,9 @@
 
 use std::path::PathBuf;
 
-use clap::{Args, ValueEnum};
+use clap::Args;
+use fem_cases::build::preset_camera;
+use fem_cases::scene::ViewName as View;
 use fem_mesh::alpha::{AlphaParams, Components};
 use fem_mesh::body::human_body;
 use fem_mesh::camera::{Camera, Projection, ProjectionParams};
@@ -12,19 +14,6 @@ use fem_mesh::load::{LoadOptions, load_model};
 use fem_mesh::pipeline::{PipelineOutput, PipelineParams, mesh_surface};
 use fem_mesh::preview::{PREVIEW_FILES, PreviewParams, write_previews};
 use fem_mesh::triangulate::TriangulateParams;
-
-/// Preset viewing directions for a +Y-up, +Z-forward model.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum View {
-    /// From the model's right (-X) side: image (z, y).
-    Side,
-    /// From the front (+Z): image (x, y).
-    Front,
-    /// From the back (-Z): image (-x, y).
-    Back,
-    /// From above (+Y), front (+Z) pointing down in the image: image (x, -z).
-    Top,
-}
 
 /// Flags of `fem2d mesh`. Lengths are in model units times `--scale` (metres for the built-in
 /// body and for the MakeHuman body with `--scale 0.1`).
@@ -231,24 +220,16 @@ fn camera_for(args: &MeshArgs, surface: &fem_mesh::Surface3) -> Result<Camera, S
     let (lo, hi) = surface
         .bounds()
         .ok_or_else(|| "the model has no vertex".to_string())?;
-    let centre = [0, 1, 2].map(|k| 0.5 * (lo[k] + hi[k]));
-    let diag = ((hi[0] - lo[0]).powi(2) + (hi[1] - lo[1]).powi(2) + (hi[2] - lo[2]).powi(2))
-        .sqrt()
-        .max(1.0);
-    let (dir, up) = match args.view {
-        View::Side => ([-1.0, 0.0, 0.0], [0.0, 1.0, 0.0]),
-        View::Front => ([0.0, 0.0, 1.0], [0.0, 1.0, 0.0]),
-        View::Back => ([0.0, 0.0, -1.0], [0.0, 1.0, 0.0]),
-        View::Top => ([0.0, 1.0, 0.0], [0.0, 0.0, -1.0]),
-    };
-    let focal = args.focal_point.unwrap_or(centre);
+    let preset = preset_camera(args.view, lo, hi);
+    let focal = args.focal_point.unwrap_or(preset.focal_point);
+    // A moved focal point keeps the preset's viewing direction and distance.
     let position = args
         .camera_position
-        .unwrap_or([0, 1, 2].map(|k| focal[k] + 2.0 * diag * dir[k]));
+        .unwrap_or([0, 1, 2].map(|k| preset.position[k] - preset.focal_point[k] + focal[k]));
     let camera = Camera {
         position,
         focal_point: focal,
-        up: args.up.unwrap_or(up),
+        up: args.up.unwrap_or(preset.up),
         projection: if args.perspective {
             Projection::Perspective
         } else {

@@ -1,3 +1,4 @@
-//! The `fem2d` subcommands, one module each.
+//! One module per `fem2d` subcommand.
 
 pub mod mesh;
+pub mod run;

@@ -1,0 +1,1090 @@
+//! Scene files: one TOML file describes a whole simulation (mesh, material, energy, solver,
+//! boundary conditions, gravity, obstacles, probes, steps and output cadence). The schema is
+//! documented field by field in `docs/scenes.md`; the built-in cases live in `fixtures/scenes/`.
+//!
+//! Loading is three steps, each with one-line errors that name the file, the field and the
+//! value:
+//! 1. parse the TOML text (syntax errors give the line and column);
+//! 2. apply `--set key=value` overrides ([`apply_override`]), the key being the value's path in
+//!    the file (`material.youngs_modulus`, `obstacles.0.mass`);
+//! 3. deserialize into [`Scene`] (unknown fields are errors, so a typo never passes silently)
+//!    and [`Scene::validate`] every value (finite, positive, in range).
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+use std::str::FromStr;
+
+use fem_core::PlaneModel;
+use fem_core::energy::EnergyKind;
+use serde::{Deserialize, Serialize};
+
+use crate::error::CaseError;
+
+/// A whole simulation, as read from a scene file.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Scene {
+    /// Short name, used in outputs (`case-a`).
+    pub name: String,
+    /// One sentence on what the scene shows.
+    #[serde(default)]
+    pub description: String,
+    /// The mesh.
+    pub mesh: MeshSpec,
+    /// Material parameters.
+    pub material: MaterialSpec,
+    /// The elastic energy. Default `neo-hookean`.
+    #[serde(default = "default_energy")]
+    pub energy: EnergyChoice,
+    /// The time stepper and its parameters.
+    pub solver: SolverSpec,
+    /// Gravitational acceleration, m/s^2. Default `[0, -9.8]`.
+    #[serde(default = "default_gravity")]
+    pub gravity: [f64; 2],
+    /// Pinned regions (zero velocity for the whole run).
+    #[serde(default)]
+    pub pinned: Vec<RegionSpec>,
+    /// Regions moved with a constant velocity during a time window.
+    #[serde(default)]
+    pub prescribed: Vec<PrescribedSpec>,
+    /// A ground half-space.
+    #[serde(default)]
+    pub ground: Option<GroundSpec>,
+    /// Rigid polygonal obstacles.
+    #[serde(default)]
+    pub obstacles: Vec<ObstacleSpec>,
+    /// Contact parameters (penalty contact of the explicit solver; friction for all).
+    #[serde(default)]
+    pub contact: Option<ContactSpec>,
+    /// Named points; each tracks the rest vertex nearest to it.
+    #[serde(default)]
+    pub probes: Vec<ProbeSpec>,
+    /// Output cadence and contents.
+    #[serde(default)]
+    pub output: OutputSpec,
+}
+
+fn default_energy() -> EnergyChoice {
+    EnergyChoice(EnergyKind::NeoHookean)
+}
+
+fn default_gravity() -> [f64; 2] {
+    [0.0, -fem_solvers::model::STANDARD_GRAVITY]
+}
+
+/// An energy name (`stvk`, `corotational`, `neo-hookean`, `stable-neo-hookean`, `linear`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(try_from = "String", into = "String")]
+pub struct EnergyChoice(pub EnergyKind);
+
+impl TryFrom<String> for EnergyChoice {
+    type Error = String;
+    fn try_from(s: String) -> Result<Self, String> {
+        EnergyKind::from_str(&s)
+            .map(EnergyChoice)
+            .map_err(|e| e.to_string())
+    }
+}
+
+impl From<EnergyChoice> for String {
+    fn from(e: EnergyChoice) -> String {
+        e.0.name().to_owned()
+    }
+}
+
+/// How the mesh is made.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum MeshKind {
+    /// A structured rectangle (`width`, `height`, `nx`, `ny`, `diagonal`, `origin`).
+    Rectangle,
+    /// A mesh JSON file (`path`).
+    File,
+    /// A 3D model file (OBJ, STL, PLY) through the mesh pipeline (`path` and pipeline fields).
+    Model,
+    /// The built-in procedural human body through the mesh pipeline (pipeline fields).
+    Body,
+}
+
+/// Diagonal pattern of a structured rectangle.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum DiagonalName {
+    /// `/` in every cell.
+    #[default]
+    Right,
+    /// `\` in every cell.
+    Left,
+    /// `/` and `\` in a checkerboard.
+    Alternating,
+    /// Four triangles per cell around its centre.
+    Crossed,
+}
+
+/// Camera preset of the mesh pipeline (model +Y up, +Z forward).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "kebab-case")]
+pub enum ViewName {
+    /// From the model's right (-X) side: image (z, y).
+    #[default]
+    Side,
+    /// From the front (+Z): image (x, y).
+    Front,
+    /// From the back (-Z): image (-x, y).
+    Back,
+    /// From above (+Y): image (x, -z).
+    Top,
+}
+
+/// The `[mesh]` table. Which fields apply depends on `kind`; a field that does not apply to
+/// the chosen kind is an error.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MeshSpec {
+    /// How the mesh is made.
+    pub kind: Option<MeshKind>,
+    /// Rectangle: width along x, m.
+    pub width: Option<f64>,
+    /// Rectangle: height along y, m.
+    pub height: Option<f64>,
+    /// Rectangle: cells along x.
+    pub nx: Option<usize>,
+    /// Rectangle: cells along y.
+    pub ny: Option<usize>,
+    /// Rectangle: diagonal pattern. Default `right`.
+    pub diagonal: Option<DiagonalName>,
+    /// Rectangle: lower-left corner, m. Default `[0, 0]`.
+    pub origin: Option<[f64; 2]>,
+    /// File and model: the file, relative to the scene file's directory.
+    pub path: Option<PathBuf>,
+    /// Model and body: factor on the model's coordinates (0.1 turns decimetres into metres).
+    /// Default 1.
+    pub scale: Option<f64>,
+    /// Model and body: camera preset. Default `side`.
+    pub view: Option<ViewName>,
+    /// Model and body: alpha-shape radius, m. Default: the pipeline's suggestion.
+    pub alpha: Option<f64>,
+    /// Model and body: Douglas-Peucker tolerance, m. Default: a quarter of the alpha radius.
+    pub epsilon: Option<f64>,
+    /// Model and body: largest triangle area, m^2. Default: no bound.
+    pub max_area: Option<f64>,
+    /// Model and body: smallest requested angle, degrees. Default 25.
+    pub min_angle: Option<f64>,
+    /// Any kind: rotation of the 2D mesh about the origin, degrees counter-clockwise, applied
+    /// first. Default 0.
+    pub rotate_deg: Option<f64>,
+    /// Any kind: after rotation, translate so the bounding box's lower-left corner lies here, m.
+    pub align_min: Option<[f64; 2]>,
+}
+
+/// The `[material]` table.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MaterialSpec {
+    /// Young's modulus E, Pa (> 0).
+    pub youngs_modulus: f64,
+    /// Poisson ratio nu, in (-1, 0.5).
+    pub poisson_ratio: f64,
+    /// Total mass, kg per unit thickness (give this or `density`).
+    pub total_mass: Option<f64>,
+    /// Density, kg/m^3 with unit thickness (give this or `total_mass`).
+    pub density: Option<f64>,
+    /// `plane-strain` (default; the paper's Lamé parameters) or `plane-stress`.
+    #[serde(default)]
+    pub plane: PlaneName,
+}
+
+/// Plane model name.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum PlaneName {
+    /// Plane strain (the paper's Eq. 2 Lamé parameters).
+    #[default]
+    PlaneStrain,
+    /// Plane stress.
+    PlaneStress,
+}
+
+impl PlaneName {
+    /// The fem-core plane model.
+    pub fn model(self) -> PlaneModel {
+        match self {
+            PlaneName::PlaneStrain => PlaneModel::PlaneStrain,
+            PlaneName::PlaneStress => PlaneModel::PlaneStress,
+        }
+    }
+}
+
+/// Solver names (`implicit` and `static` are reserved names the scene format accepts; this
+/// version reports them as not available).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum SolverKind {
+    /// Explicit FEM (Algorithm I).
+    Explicit,
+    /// Energy-based PBD.
+    Pbd,
+    /// Energy-based XPBD.
+    Xpbd,
+    /// Implicit Euler (not available in this version).
+    Implicit,
+    /// Quasi-static equilibrium (not available in this version).
+    Static,
+}
+
+impl SolverKind {
+    /// Every solver name.
+    pub const ALL: [SolverKind; 5] = [
+        SolverKind::Explicit,
+        SolverKind::Pbd,
+        SolverKind::Xpbd,
+        SolverKind::Implicit,
+        SolverKind::Static,
+    ];
+
+    /// The solvers this version runs.
+    pub const AVAILABLE: [SolverKind; 3] =
+        [SolverKind::Explicit, SolverKind::Pbd, SolverKind::Xpbd];
+
+    /// The name on the command line and in files.
+    pub fn name(self) -> &'static str {
+        match self {
+            SolverKind::Explicit => "explicit",
+            SolverKind::Pbd => "pbd",
+            SolverKind::Xpbd => "xpbd",
+            SolverKind::Implicit => "implicit",
+            SolverKind::Static => "static",
+        }
+    }
+}
+
+impl fmt::Display for SolverKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl FromStr for SolverKind {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        SolverKind::ALL
+            .into_iter()
+            .find(|k| k.name() == s)
+            .ok_or_else(|| {
+                format!(
+                    "unknown solver `{s}` (expected one of: explicit, pbd, xpbd, implicit, static)"
+                )
+            })
+    }
+}
+
+/// Explicit update scheme name.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum SchemeName {
+    /// Symplectic Euler (default).
+    #[default]
+    Symplectic,
+    /// Forward Euler (Algorithm I as printed).
+    ForwardEuler,
+}
+
+/// XPBD constraint form name.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum XpbdFormName {
+    /// `C = sqrt(2 a psi)` (default).
+    #[default]
+    Consistent,
+    /// `C = a psi` (the paper's text).
+    Literal,
+}
+
+/// Constraint ordering name.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum OrderingName {
+    /// Serial Gauss-Seidel in triangle order.
+    GaussSeidel,
+    /// Gauss-Seidel by colour classes, each class in parallel (default).
+    #[default]
+    Coloured,
+    /// Jacobi with relaxation `relaxation`.
+    Jacobi,
+}
+
+/// The `[solver]` table.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SolverSpec {
+    /// Which solver. Default `explicit`.
+    #[serde(default = "default_solver")]
+    pub kind: SolverKind,
+    /// Time step, s (> 0).
+    pub dt: f64,
+    /// Number of steps (>= 1).
+    pub steps: u64,
+    /// Velocity damping rate c, 1/s (`v <- v exp(-c dt)`). Default 0.
+    #[serde(default)]
+    pub damping: f64,
+    /// Explicit: update scheme. Default `symplectic`.
+    #[serde(default)]
+    pub scheme: SchemeName,
+    /// PBD/XPBD: constraint sweeps per substep. Default 10.
+    #[serde(default = "default_iterations")]
+    pub iterations: usize,
+    /// PBD/XPBD: substeps per step. Default 1.
+    #[serde(default = "default_substeps")]
+    pub substeps: usize,
+    /// PBD: stiffness in (0, 1]. Default 1.
+    #[serde(default = "one")]
+    pub stiffness: f64,
+    /// XPBD: compliance (consistent form: 1 = the material's own stiffness). Default 1.
+    #[serde(default = "one")]
+    pub compliance: f64,
+    /// XPBD: constraint form. Default `consistent`.
+    #[serde(default)]
+    pub xpbd_form: XpbdFormName,
+    /// PBD/XPBD: constraint ordering. Default `coloured`.
+    #[serde(default)]
+    pub ordering: OrderingName,
+    /// PBD/XPBD with `ordering = "jacobi"`: relaxation in (0, 2). Default 1.
+    #[serde(default = "one")]
+    pub relaxation: f64,
+}
+
+fn default_solver() -> SolverKind {
+    SolverKind::Explicit
+}
+fn default_iterations() -> usize {
+    10
+}
+fn default_substeps() -> usize {
+    1
+}
+fn one() -> f64 {
+    1.0
+}
+
+/// A box of rest positions, m (closed, with a 1e-9 m margin).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RegionSpec {
+    /// Lower-left corner, m.
+    pub min: [f64; 2],
+    /// Upper-right corner, m.
+    pub max: [f64; 2],
+}
+
+/// A region moved with a constant velocity during `[start, end]`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PrescribedSpec {
+    /// Lower-left corner of the region, m.
+    pub min: [f64; 2],
+    /// Upper-right corner of the region, m.
+    pub max: [f64; 2],
+    /// Velocity, m/s.
+    pub velocity: [f64; 2],
+    /// Window start, s. Default 0.
+    #[serde(default)]
+    pub start: f64,
+    /// Window end, s. Default: the end of the run.
+    pub end: Option<f64>,
+}
+
+/// The ground `y >= height` (or a tilted half-space through `point` with `normal`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GroundSpec {
+    /// Height of a horizontal ground, m (give this, or `point` and `normal`).
+    pub height: Option<f64>,
+    /// A point on a tilted ground, m.
+    pub point: Option<[f64; 2]>,
+    /// Outward normal of a tilted ground.
+    pub normal: Option<[f64; 2]>,
+}
+
+/// How an obstacle moves.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum MotionName {
+    /// Never moves (default).
+    #[default]
+    Static,
+    /// Prescribed velocity during a window.
+    Kinematic,
+    /// A rigid body with mass under gravity, pushed by the soft body.
+    Dynamic,
+}
+
+/// A rigid polygonal obstacle.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ObstacleSpec {
+    /// Name shown in outputs.
+    #[serde(default)]
+    pub name: String,
+    /// Counter-clockwise polygon at t = 0, m.
+    pub polygon: Vec<[f64; 2]>,
+    /// Motion. Default `static`.
+    #[serde(default)]
+    pub motion: MotionName,
+    /// Dynamic: mass per unit thickness, kg.
+    pub mass: Option<f64>,
+    /// Dynamic: whether the body may rotate. Default true.
+    pub rotates: Option<bool>,
+    /// Kinematic: velocity, m/s.
+    pub velocity: Option<[f64; 2]>,
+    /// Kinematic: angular velocity, rad/s. Default 0.
+    pub angular_velocity: Option<f64>,
+    /// Kinematic: window start, s. Default 0.
+    pub start: Option<f64>,
+    /// Kinematic: window end, s. Default: never stops.
+    pub end: Option<f64>,
+}
+
+/// The `[contact]` table.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ContactSpec {
+    /// Penalty stiffness per unit vertex mass, 1/s^2. Default 1e6.
+    pub stiffness: Option<f64>,
+    /// Damping ratio of the penalty spring. Default 0.5.
+    pub damping_ratio: Option<f64>,
+    /// Coulomb friction coefficient. Default 0.5.
+    pub friction: Option<f64>,
+}
+
+/// A named point; the probe follows the rest vertex nearest to it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ProbeSpec {
+    /// Name (letters, digits, `_` and `-`): the column prefix in `probes.csv`.
+    pub name: String,
+    /// Rest position, m.
+    pub point: [f64; 2],
+}
+
+/// The `[output]` table.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OutputSpec {
+    /// Steps per frame: probes and frames are recorded every this many steps (and at step 0).
+    /// Default 10 (the paper's frames at dt = 1e-3).
+    #[serde(default = "default_frame_every")]
+    pub frame_every: u64,
+    /// Write `frames.jsonl` (positions, obstacles and per-element von Mises of every frame).
+    /// Default true.
+    #[serde(default = "default_true")]
+    pub frames: bool,
+}
+
+fn default_frame_every() -> u64 {
+    10
+}
+fn default_true() -> bool {
+    true
+}
+
+impl Default for OutputSpec {
+    fn default() -> Self {
+        OutputSpec {
+            frame_every: default_frame_every(),
+            frames: true,
+        }
+    }
+}
+
+/// A scene with where it came from (for error messages and relative paths).
+#[derive(Clone, Debug, PartialEq)]
+pub struct LoadedScene {
+    /// The scene.
+    pub scene: Scene,
+    /// The file (or `built-in case-a`), named in error messages.
+    pub origin: String,
+    /// Directory relative paths resolve against.
+    pub base_dir: PathBuf,
+}
+
+impl LoadedScene {
+    /// Resolve a path given in the scene.
+    pub fn resolve(&self, path: &Path) -> PathBuf {
+        if path.is_absolute() {
+            path.to_path_buf()
+        } else {
+            self.base_dir.join(path)
+        }
+    }
+
+    /// An error naming this scene, a field and a value.
+    pub fn error(&self, field: &str, value: impl fmt::Display, rule: &str) -> CaseError {
+        CaseError::Scene(format!("{}: {field} = {value}: {rule}", self.origin))
+    }
+}
+
+/// Parse `text` (from `origin`), apply `overrides` (`key=value`), deserialize and validate.
+pub fn parse_scene(
+    text: &str,
+    origin: &str,
+    base_dir: &Path,
+    overrides: &[String],
+) -> Result<LoadedScene, CaseError> {
+    let mut table: toml::Table = text.parse().map_err(|e: toml::de::Error| {
+        let place = e
+            .span()
+            .map(|s| {
+                let (line, col) = line_col(text, s.start);
+                format!(":{line}:{col}")
+            })
+            .unwrap_or_default();
+        CaseError::Scene(format!(
+            "{origin}{place}: {}",
+            e.message().trim().replace('\n', " ")
+        ))
+    })?;
+    for o in overrides {
+        apply_override(&mut table, o).map_err(|m| CaseError::Scene(format!("{origin}: {m}")))?;
+    }
+    let scene: Scene = serde_path_to_error::deserialize(toml::Value::Table(table)).map_err(
+        |e: serde_path_to_error::Error<toml::de::Error>| {
+            let path = e.path().to_string();
+            let inner = e.inner().message().trim().replace('\n', " ");
+            if path == "." || path.is_empty() {
+                CaseError::Scene(format!("{origin}: {inner}"))
+            } else {
+                CaseError::Scene(format!("{origin}: {path}: {inner}"))
+            }
+        },
+    )?;
+    let loaded = LoadedScene {
+        scene,
+        origin: origin.to_owned(),
+        base_dir: base_dir.to_path_buf(),
+    };
+    loaded.validate()?;
+    Ok(loaded)
+}
+
+/// Read and parse a scene file.
+pub fn load_scene_file(path: &Path, overrides: &[String]) -> Result<LoadedScene, CaseError> {
+    let text = std::fs::read_to_string(path).map_err(|e| {
+        CaseError::Io(format!(
+            "{}: cannot read the scene file: {e}",
+            path.display()
+        ))
+    })?;
+    let base = path
+        .parent()
+        .map(Path::to_path_buf)
+        .unwrap_or_else(|| PathBuf::from("."));
+    parse_scene(&text, &path.display().to_string(), &base, overrides)
+}
+
+fn line_col(text: &str, offset: usize) -> (usize, usize) {
+    let before = &text[..offset.min(text.len())];
+    let line = before.matches('\n').count() + 1;
+    let col = before.len() - before.rfind('\n').map_or(0, |i| i + 1) + 1;
+    (line, col)
+}
+
+/// Apply one `key=value` override to a parsed TOML table. The key is a dotted path
+/// (`material.youngs_modulus`; array elements by index: `obstacles.0.mass`); the value is TOML
+/// (`2000`, `[0, -9.8]`, `"stvk"`) or, when it does not parse as TOML, a bare string
+/// (`energy=stvk`). Missing tables along the path are created; indexing past the end of an
+/// array is an error.
+pub fn apply_override(table: &mut toml::Table, assignment: &str) -> Result<(), String> {
+    let (key, raw) = assignment
+        .split_once('=')
+        .ok_or_else(|| format!("--set {assignment:?}: expected key=value"))?;
+    let key = key.trim();
+    let raw = raw.trim();
+    if key.is_empty() || key.split('.').any(str::is_empty) {
+        return Err(format!("--set {assignment:?}: empty key component"));
+    }
+    let value = parse_override_value(raw);
+    let parts: Vec<&str> = key.split('.').collect();
+    let mut root = toml::Value::Table(std::mem::take(table));
+    let result = set_path(&mut root, key, &parts, value);
+    if let toml::Value::Table(t) = root {
+        *table = t;
+    }
+    result
+}
+
+fn set_path(
+    root: &mut toml::Value,
+    key: &str,
+    parts: &[&str],
+    value: toml::Value,
+) -> Result<(), String> {
+    let mut cursor = root;
+    for (depth, part) in parts.iter().enumerate() {
+        let last = depth + 1 == parts.len();
+        let here = if depth == 0 {
+            "the scene".to_owned()
+        } else {
+            format!("`{}`", parts[..depth].join("."))
+        };
+        let next = match cursor {
+            toml::Value::Table(t) => {
+                if last {
+                    t.insert((*part).to_owned(), value);
+                    return Ok(());
+                }
+                t.entry((*part).to_owned())
+                    .or_insert_with(|| toml::Value::Table(toml::Table::new()))
+            }
+            toml::Value::Array(a) => {
+                let index: usize = part.parse().map_err(|_| {
+                    format!("--set {key}: {here} is an array; `{part}` is not an index")
+                })?;
+                let len = a.len();
+                let slot = a.get_mut(index).ok_or_else(|| {
+                    format!("--set {key}: index {index} is past the end of {here} ({len} entries)")
+                })?;
+                if last {
+                    *slot = value;
+                    return Ok(());
+                }
+                slot
+            }
+            other => {
+                return Err(format!(
+                    "--set {key}: {here} is a {}, not a table",
+                    other.type_str()
+                ));
+            }
+        };
+        cursor = next;
+    }
+    Ok(())
+}
+
+fn parse_override_value(raw: &str) -> toml::Value {
+    let doc = format!("v = {raw}");
+    match doc.parse::<toml::Table>() {
+        Ok(mut t) => t.remove("v").unwrap_or(toml::Value::String(raw.to_owned())),
+        Err(_) => toml::Value::String(raw.to_owned()),
+    }
+}
+
+/// Validation: every value finite and in range, fields consistent with their kind.
+impl LoadedScene {
+    /// Check every value; the first problem is returned as a one-line error naming the scene
+    /// file, the field and the value.
+    pub fn validate(&self) -> Result<(), CaseError> {
+        let s = &self.scene;
+        let finite = |field: &str, v: f64| -> Result<(), CaseError> {
+            if v.is_finite() {
+                Ok(())
+            } else {
+                Err(self.error(field, v, "must be a finite number"))
+            }
+        };
+        let positive = |field: &str, v: f64, unit: &str| -> Result<(), CaseError> {
+            if v.is_finite() && v > 0.0 {
+                Ok(())
+            } else {
+                Err(self.error(field, v, &format!("must be a finite number > 0 ({unit})")))
+            }
+        };
+        let non_negative = |field: &str, v: f64, unit: &str| -> Result<(), CaseError> {
+            if v.is_finite() && v >= 0.0 {
+                Ok(())
+            } else {
+                Err(self.error(field, v, &format!("must be a finite number >= 0 ({unit})")))
+            }
+        };
+        let point = |field: &str, p: [f64; 2]| -> Result<(), CaseError> {
+            if p.iter().all(|c| c.is_finite()) {
+                Ok(())
+            } else {
+                Err(self.error(field, fmt_point(p), "must have finite coordinates"))
+            }
+        };
+        let boxed = |field: &str, min: [f64; 2], max: [f64; 2]| -> Result<(), CaseError> {
+            point(&format!("{field}.min"), min)?;
+            point(&format!("{field}.max"), max)?;
+            if min[0] > max[0] || min[1] > max[1] {
+                return Err(self.error(
+                    &format!("{field}.min"),
+                    fmt_point(min),
+                    &format!(
+                        "must not exceed max = {} in either coordinate",
+                        fmt_point(max)
+                    ),
+                ));
+            }
+            Ok(())
+        };
+
+        if s.name.trim().is_empty() {
+            return Err(self.error("name", "\"\"", "must not be empty"));
+        }
+        self.validate_mesh()?;
+
+        let m = &s.material;
+        positive("material.youngs_modulus", m.youngs_modulus, "Pa")?;
+        if !(m.poisson_ratio > -1.0 && m.poisson_ratio < 0.5) {
+            return Err(self.error(
+                "material.poisson_ratio",
+                m.poisson_ratio,
+                "must lie in the open interval (-1, 0.5)",
+            ));
+        }
+        match (m.total_mass, m.density) {
+            (Some(t), None) => positive("material.total_mass", t, "kg per unit thickness")?,
+            (None, Some(d)) => positive("material.density", d, "kg/m^3")?,
+            (Some(_), Some(_)) => {
+                return Err(self.error(
+                    "material.density",
+                    m.density.unwrap_or_default(),
+                    "give total_mass or density, not both",
+                ));
+            }
+            (None, None) => {
+                return Err(self.error(
+                    "material.total_mass",
+                    "(missing)",
+                    "give total_mass (kg) or density (kg/m^3)",
+                ));
+            }
+        }
+
+        let v = &s.solver;
+        if !SolverKind::AVAILABLE.contains(&v.kind) {
+            return Err(self.error(
+                "solver.kind",
+                v.kind,
+                "is not available in this version (available: explicit, pbd, xpbd)",
+            ));
+        }
+        positive("solver.dt", v.dt, "s")?;
+        if v.steps == 0 {
+            return Err(self.error("solver.steps", 0, "must be >= 1"));
+        }
+        non_negative("solver.damping", v.damping, "1/s")?;
+        if v.iterations == 0 {
+            return Err(self.error("solver.iterations", 0, "must be >= 1"));
+        }
+        if v.substeps == 0 {
+            return Err(self.error("solver.substeps", 0, "must be >= 1"));
+        }
+        if !(v.stiffness > 0.0 && v.stiffness <= 1.0) {
+            return Err(self.error("solver.stiffness", v.stiffness, "must lie in (0, 1]"));
+        }
+        non_negative("solver.compliance", v.compliance, "dimensionless")?;
+        if !(v.relaxation > 0.0 && v.relaxation < 2.0) {
+            return Err(self.error(
+                "solver.relaxation",
+                v.relaxation,
+                "must lie in the open interval (0, 2)",
+            ));
+        }
+
+        point("gravity", s.gravity)?;
+        for (i, r) in s.pinned.iter().enumerate() {
+            boxed(&format!("pinned.{i}"), r.min, r.max)?;
+        }
+        for (i, p) in s.prescribed.iter().enumerate() {
+            let f = format!("prescribed.{i}");
+            boxed(&f, p.min, p.max)?;
+            point(&format!("{f}.velocity"), p.velocity)?;
+            non_negative(&format!("{f}.start"), p.start, "s")?;
+            if let Some(end) = p.end {
+                if end.is_nan() || end < p.start {
+                    return Err(self.error(&format!("{f}.end"), end, "must be >= start (s)"));
+                }
+            }
+        }
+        if let Some(g) = &s.ground {
+            match (g.height, g.point, g.normal) {
+                (Some(h), None, None) => finite("ground.height", h)?,
+                (None, Some(p), Some(n)) => {
+                    point("ground.point", p)?;
+                    point("ground.normal", n)?;
+                    if n[0] == 0.0 && n[1] == 0.0 {
+                        return Err(self.error("ground.normal", fmt_point(n), "must not be zero"));
+                    }
+                }
+                _ => {
+                    return Err(self.error(
+                        "ground",
+                        "(table)",
+                        "give either height, or point and normal",
+                    ));
+                }
+            }
+        }
+        for (i, o) in s.obstacles.iter().enumerate() {
+            let f = format!("obstacles.{i}");
+            if o.polygon.len() < 3 {
+                return Err(self.error(
+                    &format!("{f}.polygon"),
+                    format!("({} points)", o.polygon.len()),
+                    "needs at least 3 points",
+                ));
+            }
+            for (k, p) in o.polygon.iter().enumerate() {
+                point(&format!("{f}.polygon.{k}"), *p)?;
+            }
+            let area = signed_area(&o.polygon);
+            if area.is_nan() || area <= 0.0 {
+                return Err(self.error(
+                    &format!("{f}.polygon"),
+                    format!("(signed area {area:e})"),
+                    "must be counter-clockwise with positive area",
+                ));
+            }
+            let unexpected = |name: &str, present: bool| -> Result<(), CaseError> {
+                if present {
+                    Err(self.error(
+                        &format!("{f}.{name}"),
+                        "(set)",
+                        &format!("does not apply to motion = \"{}\"", motion_name(o.motion)),
+                    ))
+                } else {
+                    Ok(())
+                }
+            };
+            match o.motion {
+                MotionName::Static => {
+                    unexpected("mass", o.mass.is_some())?;
+                    unexpected("rotates", o.rotates.is_some())?;
+                    unexpected("velocity", o.velocity.is_some())?;
+                    unexpected("angular_velocity", o.angular_velocity.is_some())?;
+                    unexpected("start", o.start.is_some())?;
+                    unexpected("end", o.end.is_some())?;
+                }
+                MotionName::Dynamic => {
+                    let mass = o.mass.ok_or_else(|| {
+                        self.error(
+                            &format!("{f}.mass"),
+                            "(missing)",
+                            "a dynamic obstacle needs a mass (kg)",
+                        )
+                    })?;
+                    positive(&format!("{f}.mass"), mass, "kg per unit thickness")?;
+                    unexpected("velocity", o.velocity.is_some())?;
+                    unexpected("angular_velocity", o.angular_velocity.is_some())?;
+                    unexpected("start", o.start.is_some())?;
+                    unexpected("end", o.end.is_some())?;
+                }
+                MotionName::Kinematic => {
+                    unexpected("mass", o.mass.is_some())?;
+                    unexpected("rotates", o.rotates.is_some())?;
+                    let vel = o.velocity.ok_or_else(|| {
+                        self.error(
+                            &format!("{f}.velocity"),
+                            "(missing)",
+                            "a kinematic obstacle needs a velocity (m/s)",
+                        )
+                    })?;
+                    point(&format!("{f}.velocity"), vel)?;
+                    finite(
+                        &format!("{f}.angular_velocity"),
+                        o.angular_velocity.unwrap_or(0.0),
+                    )?;
+                    let start = o.start.unwrap_or(0.0);
+                    non_negative(&format!("{f}.start"), start, "s")?;
+                    if let Some(end) = o.end {
+                        if end.is_nan() || end < start {
+                            return Err(self.error(
+                                &format!("{f}.end"),
+                                end,
+                                "must be >= start (s)",
+                            ));
+                        }
+                    }
+                }
+            }
+        }
+        if let Some(c) = &s.contact {
+            if let Some(k) = c.stiffness {
+                positive("contact.stiffness", k, "1/s^2")?;
+            }
+            if let Some(z) = c.damping_ratio {
+                non_negative("contact.damping_ratio", z, "dimensionless")?;
+            }
+            if let Some(mu) = c.friction {
+                non_negative("contact.friction", mu, "dimensionless")?;
+            }
+        }
+        for (i, p) in s.probes.iter().enumerate() {
+            let f = format!("probes.{i}");
+            if p.name.is_empty()
+                || !p
+                    .name
+                    .chars()
+                    .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
+            {
+                return Err(self.error(
+                    &format!("{f}.name"),
+                    format!("{:?}", p.name),
+                    "must be non-empty letters, digits, `_` or `-`",
+                ));
+            }
+            if s.probes[..i].iter().any(|q| q.name == p.name) {
+                return Err(self.error(
+                    &format!("{f}.name"),
+                    format!("{:?}", p.name),
+                    "is used twice",
+                ));
+            }
+            point(&format!("{f}.point"), p.point)?;
+        }
+        if s.output.frame_every == 0 {
+            return Err(self.error("output.frame_every", 0, "must be >= 1"));
+        }
+        Ok(())
+    }
+
+    fn validate_mesh(&self) -> Result<(), CaseError> {
+        let m = &self.scene.mesh;
+        let kind = m.kind.ok_or_else(|| {
+            self.error(
+                "mesh.kind",
+                "(missing)",
+                "must be one of \"rectangle\", \"file\", \"model\", \"body\"",
+            )
+        })?;
+        let kind_name = match kind {
+            MeshKind::Rectangle => "rectangle",
+            MeshKind::File => "file",
+            MeshKind::Model => "model",
+            MeshKind::Body => "body",
+        };
+        let rect = [
+            ("width", m.width.is_some()),
+            ("height", m.height.is_some()),
+            ("nx", m.nx.is_some()),
+            ("ny", m.ny.is_some()),
+            ("diagonal", m.diagonal.is_some()),
+            ("origin", m.origin.is_some()),
+        ];
+        let pipeline = [
+            ("scale", m.scale.is_some()),
+            ("view", m.view.is_some()),
+            ("alpha", m.alpha.is_some()),
+            ("epsilon", m.epsilon.is_some()),
+            ("max_area", m.max_area.is_some()),
+            ("min_angle", m.min_angle.is_some()),
+        ];
+        let path = [("path", m.path.is_some())];
+        let allowed: Vec<&str> = match kind {
+            MeshKind::Rectangle => rect.iter().map(|r| r.0).collect(),
+            MeshKind::File => vec!["path"],
+            MeshKind::Model => pipeline.iter().map(|r| r.0).chain(["path"]).collect(),
+            MeshKind::Body => pipeline.iter().map(|r| r.0).collect(),
+        };
+        for (name, present) in rect.iter().chain(&pipeline).chain(&path) {
+            if *present && !allowed.contains(name) {
+                return Err(self.error(
+                    &format!("mesh.{name}"),
+                    "(set)",
+                    &format!("does not apply to kind = \"{kind_name}\""),
+                ));
+            }
+        }
+        let need = |name: &str, present: bool| -> Result<(), CaseError> {
+            if present {
+                Ok(())
+            } else {
+                Err(self.error(
+                    &format!("mesh.{name}"),
+                    "(missing)",
+                    &format!("is required for kind = \"{kind_name}\""),
+                ))
+            }
+        };
+        let positive = |name: &str, v: Option<f64>| -> Result<(), CaseError> {
+            match v {
+                Some(v) if !(v.is_finite() && v > 0.0) => {
+                    Err(self.error(&format!("mesh.{name}"), v, "must be a finite number > 0"))
+                }
+                _ => Ok(()),
+            }
+        };
+        match kind {
+            MeshKind::Rectangle => {
+                for (name, present) in &rect[..4] {
+                    need(name, *present)?;
+                }
+                positive("width", m.width)?;
+                positive("height", m.height)?;
+                for (name, n) in [("nx", m.nx), ("ny", m.ny)] {
+                    if let Some(n) = n {
+                        if n == 0 || n > 10_000 {
+                            return Err(self.error(
+                                &format!("mesh.{name}"),
+                                n,
+                                "must lie in 1..=10000",
+                            ));
+                        }
+                    }
+                }
+                if let Some(o) = m.origin {
+                    if !o.iter().all(|c| c.is_finite()) {
+                        return Err(self.error(
+                            "mesh.origin",
+                            fmt_point(o),
+                            "must have finite coordinates",
+                        ));
+                    }
+                }
+            }
+            MeshKind::File | MeshKind::Model => need("path", m.path.is_some())?,
+            MeshKind::Body => {}
+        }
+        positive("scale", m.scale)?;
+        positive("alpha", m.alpha)?;
+        positive("epsilon", m.epsilon)?;
+        positive("max_area", m.max_area)?;
+        if let Some(a) = m.min_angle {
+            if !(a.is_finite() && (0.0..=33.0).contains(&a)) {
+                return Err(self.error("mesh.min_angle", a, "must lie in [0, 33] degrees"));
+            }
+        }
+        if let Some(r) = m.rotate_deg {
+            if !r.is_finite() {
+                return Err(self.error("mesh.rotate_deg", r, "must be a finite number"));
+            }
+        }
+        if let Some(p) = m.align_min {
+            if !p.iter().all(|c| c.is_finite()) {
+                return Err(self.error(
+                    "mesh.align_min",
+                    fmt_point(p),
+                    "must have finite coordinates",
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+fn motion_name(m: MotionName) -> &'static str {
+    match m {
+        MotionName::Static => "static",
+        MotionName::Kinematic => "kinematic",
+        MotionName::Dynamic => "dynamic",
+    }
+}
+
+/// `[x, y]` for messages.
+pub(crate) fn fmt_point(p: [f64; 2]) -> String {
+    format!("[{}, {}]", p[0], p[1])
+}
+
+/// Shoelace signed area (positive counter-clockwise).
+pub(crate) fn signed_area(poly: &[[f64; 2]]) -> f64 {
+    let n = poly.len();
+    (0..n)
+        .map(|i| {
+            let (a, b) = (poly[i], poly[(i + 1) % n]);
+            a[0] * b[1] - b[0] * a[1]
+        })
+        .sum::<f64>()
+        * 0.5
+}
