@@ -70,7 +70,10 @@ pub fn build_mesh(scene: &LoadedScene) -> Result<Mesh, CaseError> {
         kind @ (MeshKind::Model | MeshKind::Body) => {
             let mut surface = if kind == MeshKind::Model {
                 let path = scene.resolve(spec.path.as_deref().unwrap_or("".as_ref()));
-                fem_mesh::load::load_model(&path, &Default::default()).map_err(mesh_err)?
+                let options = fem_mesh::load::LoadOptions {
+                    groups: spec.groups.clone().unwrap_or_default(),
+                };
+                fem_mesh::load::load_model(&path, &options).map_err(mesh_err)?
             } else {
                 fem_mesh::body::human_body()
             };

@@ -8,7 +8,9 @@
 //! - [`build`]: from a scene to a mesh, a [`fem_solvers::Model`] and a stepper;
 //! - [`run`]: the step loop with probes, frames, stress statistics, blow-up detection, timing
 //!   and the run outputs (`summary.json`, `probes.csv`, `frames.jsonl`);
-//! - [`cases`]: the built-in cases A-D (`fixtures/scenes/`).
+//! - [`cases`]: the built-in cases A-D (`fixtures/scenes/`);
+//! - [`compare`]: the energy x solver matrix on one scene;
+//! - [`table1`]: the paper's Table 1 regenerated, and the calibration scan behind its setting.
 //!
 //! ```
 //! use fem_cases::{cases::load_case, run::{run_scene, RunOptions}};
@@ -21,8 +23,10 @@
 
 pub mod build;
 pub mod cases;
+pub mod compare;
 pub mod error;
 pub mod run;
 pub mod scene;
+pub mod table1;
 
 pub use error::CaseError;

@@ -18,6 +18,10 @@ struct Fem2d {
 enum Command {
     /// Run one scene (a built-in case or a scene file) under one energy and solver.
     Run(Box<cli::run::RunArgs>),
+    /// The energy x solver matrix on one scene: probes, peak stress, cost, stability.
+    Compare(Box<cli::compare::CompareArgs>),
+    /// Regenerate the paper's Table 1 (case A) beside the paper's values; calibration scan.
+    Table1(Box<cli::table1::Table1Args>),
     /// Turn a 3D model (OBJ, STL, PLY or the built-in body) into a 2D FEM mesh.
     Mesh(Box<cli::mesh::MeshArgs>),
 }
@@ -26,6 +30,8 @@ fn main() -> std::process::ExitCode {
     let args = Fem2d::parse();
     let result = match args.command {
         Command::Run(a) => cli::run::run(&a),
+        Command::Compare(a) => cli::compare::run(&a),
+        Command::Table1(a) => cli::table1::run(&a),
         Command::Mesh(mesh) => cli::mesh::run(&mesh),
     };
     match result {

@@ -157,6 +157,8 @@ pub struct MeshSpec {
     pub origin: Option<[f64; 2]>,
     /// File and model: the file, relative to the scene file's directory.
     pub path: Option<PathBuf>,
+    /// Model: OBJ groups or objects to keep (default: every face).
+    pub groups: Option<Vec<String>>,
     /// Model and body: factor on the model's coordinates (0.1 turns decimetres into metres).
     /// Default 1.
     pub scale: Option<f64>,
@@ -971,11 +973,15 @@ impl LoadedScene {
             ("max_area", m.max_area.is_some()),
             ("min_angle", m.min_angle.is_some()),
         ];
-        let path = [("path", m.path.is_some())];
+        let path = [("path", m.path.is_some()), ("groups", m.groups.is_some())];
         let allowed: Vec<&str> = match kind {
             MeshKind::Rectangle => rect.iter().map(|r| r.0).collect(),
             MeshKind::File => vec!["path"],
-            MeshKind::Model => pipeline.iter().map(|r| r.0).chain(["path"]).collect(),
+            MeshKind::Model => pipeline
+                .iter()
+                .map(|r| r.0)
+                .chain(["path", "groups"])
+                .collect(),
             MeshKind::Body => pipeline.iter().map(|r| r.0).collect(),
         };
         for (name, present) in rect.iter().chain(&pipeline).chain(&path) {

@@ -1,4 +1,6 @@
 //! One module per `fem2d` subcommand.
 
+pub mod compare;
 pub mod mesh;
 pub mod run;
+pub mod table1;
