@@ -265,14 +265,14 @@ impl Table1 {
                     );
                 }
                 Some(b) => {
-                    for k in 0..4 {
-                        let d = (r.ours_mm[k] - b.ours_mm[k]).abs();
+                    for ((frame, now), then) in FRAMES.iter().zip(r.ours_mm).zip(b.ours_mm) {
+                        let d = (now - then).abs();
                         if d > worst.0 || d.is_nan() {
                             worst = (
                                 d,
                                 format!(
-                                    "{} frame {}: {:.3} mm now, {:.3} mm in the baseline",
-                                    r.energy, FRAMES[k], r.ours_mm[k], b.ours_mm[k]
+                                    "{} frame {frame}: {now:.3} mm now, {then:.3} mm in the baseline",
+                                    r.energy
                                 ),
                             );
                         }
