@@ -10,6 +10,7 @@
 //!   and the run outputs (`summary.json`, `probes.csv`, `frames.jsonl`);
 //! - [`cases`]: the built-in cases A-D (`fixtures/scenes/`);
 //! - [`compare`]: the energy x solver matrix on one scene;
+//! - [`sweep`]: parameter sweeps split into shards, and their merge;
 //! - [`table1`]: the paper's Table 1 regenerated, and the calibration scan behind its setting.
 //!
 //! ```
@@ -27,6 +28,7 @@ pub mod compare;
 pub mod error;
 pub mod run;
 pub mod scene;
+pub mod sweep;
 pub mod table1;
 
 pub use error::CaseError;

@@ -22,6 +22,10 @@ enum Command {
     Compare(Box<cli::compare::CompareArgs>),
     /// Regenerate the paper's Table 1 (case A) beside the paper's values; calibration scan.
     Table1(Box<cli::table1::Table1Args>),
+    /// Run one shard of a parameter sweep (any batch scheduler can run the shards).
+    Sweep(Box<cli::sweep::SweepArgs>),
+    /// Join the shard files of a sweep into one table (JSON, CSV, markdown).
+    Merge(Box<cli::sweep::MergeArgs>),
     /// Turn a 3D model (OBJ, STL, PLY or the built-in body) into a 2D FEM mesh.
     Mesh(Box<cli::mesh::MeshArgs>),
 }
@@ -32,6 +36,8 @@ fn main() -> std::process::ExitCode {
         Command::Run(a) => cli::run::run(&a),
         Command::Compare(a) => cli::compare::run(&a),
         Command::Table1(a) => cli::table1::run(&a),
+        Command::Sweep(a) => cli::sweep::run_sweep(&a),
+        Command::Merge(a) => cli::sweep::run_merge(&a),
         Command::Mesh(mesh) => cli::mesh::run(&mesh),
     };
     match result {

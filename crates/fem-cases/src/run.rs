@@ -9,7 +9,8 @@
 //!   positions (`[x0, y0, x1, y1, ...]`), the obstacle polygons and the per-element von Mises
 //!   stress, for renderers;
 //! - `mesh.json`: the rest mesh (mesh JSON contract);
-//! - `scene.toml`: the scene as run, overrides applied.
+//! - `scene.toml`: the scene as run, overrides applied (a relative mesh path written absolute,
+//!   so the copy runs from the output directory).
 //!
 //! A run *blows up* when a step produces a non-finite value (the solver refuses it) or a
 //! displacement exceeds a thousand times the body's size; the outputs then describe the run up
@@ -32,6 +33,21 @@ use crate::build::{Probe, build_mesh, build_model, build_stepper, energy, von_mi
 use crate::error::CaseError;
 use crate::scene::LoadedScene;
 
+/// JSON has no NaN or infinity: `serde_json` writes them as `null`; these read `null` back as
+/// NaN, so a summary of a run that blew up round-trips.
+mod nullable {
+    use serde::{Deserialize, Deserializer};
+
+    pub fn f64<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+        Ok(Option::<f64>::deserialize(d)?.unwrap_or(f64::NAN))
+    }
+
+    pub fn pair<'de, D: Deserializer<'de>>(d: D) -> Result<[f64; 2], D::Error> {
+        let [a, b] = <[Option<f64>; 2]>::deserialize(d)?;
+        Ok([a.unwrap_or(f64::NAN), b.unwrap_or(f64::NAN)])
+    }
+}
+
 /// How to run (not part of the scene).
 #[derive(Clone, Debug, Default)]
 pub struct RunOptions {
@@ -53,8 +69,10 @@ pub struct ProbeSummary {
     /// Its rest position, m.
     pub rest: [f64; 2],
     /// Displacement at the last recorded frame, m.
+    #[serde(deserialize_with = "nullable::pair")]
     pub final_displacement: [f64; 2],
     /// Smallest and largest vertical displacement over the recorded frames, m.
+    #[serde(deserialize_with = "nullable::pair")]
     pub uy_range: [f64; 2],
 }
 
@@ -90,22 +108,29 @@ pub struct Summary {
     /// Wall time of the steps alone (no recording), s.
     pub step_seconds: f64,
     /// Triangles x steps completed / step_seconds.
+    #[serde(deserialize_with = "nullable::f64")]
     pub element_steps_per_second: f64,
     /// Simulated seconds per wall second of stepping.
+    #[serde(deserialize_with = "nullable::f64")]
     pub real_time_factor: f64,
     /// Largest per-element von Mises stress over the recorded frames, Pa.
+    #[serde(deserialize_with = "nullable::f64")]
     pub max_von_mises: f64,
     /// The step of that frame.
     pub max_von_mises_step: u64,
     /// The element and its centroid in the deformed configuration of that frame, m.
     pub max_von_mises_element: usize,
     /// Centroid of that element at that frame, m.
+    #[serde(deserialize_with = "nullable::pair")]
     pub max_von_mises_at: [f64; 2],
     /// Largest per-element von Mises stress at the last recorded frame, Pa.
+    #[serde(deserialize_with = "nullable::f64")]
     pub final_max_von_mises: f64,
     /// Largest vertex-averaged von Mises stress at the last recorded frame, Pa.
+    #[serde(deserialize_with = "nullable::f64")]
     pub final_max_vertex_von_mises: f64,
     /// Smallest det F over every step.
+    #[serde(deserialize_with = "nullable::f64")]
     pub min_det_f: f64,
     /// Most inverted elements in any step.
     pub inverted_elements: usize,
@@ -116,6 +141,7 @@ pub struct Summary {
     /// The explicit stability warning, when dt exceeds the estimated limit.
     pub time_step_warning: Option<String>,
     /// Largest displacement magnitude at the last recorded frame, m.
+    #[serde(deserialize_with = "nullable::f64")]
     pub final_max_displacement: f64,
     /// Probes.
     pub probes: Vec<ProbeSummary>,
@@ -572,8 +598,15 @@ fn write_outputs(scene: &LoadedScene, result: &RunResult, dir: &Path) -> Result<
         &dir.join("mesh.json"),
         fem_mesh::io::mesh_to_json(&mesh).as_bytes(),
     )?;
-    let toml = toml::to_string_pretty(&scene.scene)
-        .map_err(|e| CaseError::Io(format!("scene.toml: {e}")))?;
+    // The copy lives in the output directory, not beside the original: a relative mesh path
+    // is written absolute so that the copy still finds the mesh.
+    let mut as_run = scene.scene.clone();
+    if let Some(path) = &as_run.mesh.path {
+        let resolved = scene.resolve(path);
+        as_run.mesh.path = Some(std::path::absolute(&resolved).unwrap_or(resolved));
+    }
+    let toml =
+        toml::to_string_pretty(&as_run).map_err(|e| CaseError::Io(format!("scene.toml: {e}")))?;
     write_atomic(&dir.join("scene.toml"), toml.as_bytes())?;
     // The summary last: its presence says the other files are complete.
     write_atomic(&dir.join("summary.json"), summary.as_bytes())

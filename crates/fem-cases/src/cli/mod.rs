@@ -3,4 +3,5 @@
 pub mod compare;
 pub mod mesh;
 pub mod run;
+pub mod sweep;
 pub mod table1;

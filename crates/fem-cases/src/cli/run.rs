@@ -30,8 +30,9 @@ pub struct RunArgs {
     /// Solver: explicit, pbd, xpbd (default: the scene's).
     #[arg(long)]
     pub solver: Option<String>,
-    /// Time step, s (default: the scene's).
-    #[arg(long)]
+    /// Time step, s (default: the scene's). A negative value is read as a number, so that
+    /// `--dt -1` is rejected by the scene's validation with a one-line error.
+    #[arg(long, allow_negative_numbers = true)]
     pub dt: Option<f64>,
     /// Number of steps (default: the scene's).
     #[arg(long)]
@@ -108,24 +109,24 @@ pub fn run(args: &RunArgs) -> Result<(), String> {
         s.real_time_factor
     );
     println!(
-        "max von Mises {:.4e} Pa (step {}, element {} at [{:.3}, {:.3}] m), min det F {:.4}, inverted elements {}",
+        "max von Mises {:.4e} Pa (step {}, element {} at [{}, {}] m), min det F {}, inverted elements {}",
         s.max_von_mises,
         s.max_von_mises_step,
         s.max_von_mises_element,
-        s.max_von_mises_at[0],
-        s.max_von_mises_at[1],
-        s.min_det_f,
+        fixed(s.max_von_mises_at[0], 3),
+        fixed(s.max_von_mises_at[1], 3),
+        fixed(s.min_det_f, 4),
         s.inverted_elements
     );
     for p in &s.probes {
         println!(
-            "probe {}: vertex {} at [{}, {}], final displacement [{:.6}, {:.6}] m",
+            "probe {}: vertex {} at [{}, {}], final displacement [{}, {}] m",
             p.name,
             p.vertex,
             p.rest[0],
             p.rest[1],
-            p.final_displacement[0],
-            p.final_displacement[1]
+            fixed(p.final_displacement[0], 6),
+            fixed(p.final_displacement[1], 6)
         );
     }
     println!(
@@ -143,5 +144,15 @@ pub fn run(args: &RunArgs) -> Result<(), String> {
             args.out.display()
         )),
         None => Ok(()),
+    }
+}
+
+/// `x` with `digits` decimals, or in scientific notation when it is too large for that to be
+/// readable (a blown-up run's numbers have a hundred digits).
+fn fixed(x: f64, digits: usize) -> String {
+    if x.abs() < 1e6 || !x.is_finite() {
+        format!("{x:.digits$}")
+    } else {
+        format!("{x:.digits$e}")
     }
 }

@@ -1,0 +1,272 @@
+//! The claims of the paper's Section 4, one test each, on the built-in cases (and, for case D,
+//! on the real MakeHuman body in `../shared/fixtures/human/`). Each test fails if the claim
+//! stops holding; the margins are stated beside each assertion.
+
+use fem_cases::cases::load_case;
+use fem_cases::run::{RunOptions, RunResult, run_scene};
+use fem_cases::table1::{ENERGIES, FRAMES, PAPER_MM, ordering_holds, table1, tip_mm};
+
+fn run(case: &str, overrides: &[&str]) -> RunResult {
+    let o: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();
+    let scene = load_case(case, &o).unwrap_or_else(|e| panic!("{e}"));
+    run_scene(
+        &scene,
+        &RunOptions {
+            threads: Some(1),
+            ..RunOptions::default()
+        },
+    )
+    .unwrap_or_else(|e| panic!("{e}"))
+}
+
+fn last(result: &RunResult, probe: &str) -> [f64; 2] {
+    *result.probe(probe).unwrap().last().unwrap()
+}
+
+/// Case A: "no significant differences ... across the different models". The three energies'
+/// tip displacements agree within 0.5% at frames 10 and 50, within 6% of their mean at frame
+/// 120 (the paper's own spread is 4.4%), and within 50 mm at frame 200, which sits near a zero
+/// crossing (the paper's spread is 33 mm).
+#[test]
+fn case_a_energies_agree_within_stated_margins() {
+    let mm: Vec<[f64; 4]> = ENERGIES
+        .iter()
+        .map(|e| {
+            let r = run("case-a", &[&format!("energy=\"{}\"", e.name())]);
+            tip_mm(&r).unwrap()
+        })
+        .collect();
+    for (k, frame) in FRAMES.iter().enumerate() {
+        let values: Vec<f64> = mm.iter().map(|row| row[k]).collect();
+        let lo = values.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi = values.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        let mean = values.iter().sum::<f64>() / 3.0;
+        match frame {
+            10 | 50 => assert!((hi - lo) / mean < 0.005, "frame {frame}: {values:?}"),
+            120 => assert!((hi - lo) / mean < 0.06, "frame {frame}: {values:?}"),
+            _ => assert!(hi - lo < 50.0, "frame {frame}: {values:?}"),
+        }
+    }
+    // Frame 10 is free fall: 1/2 g t^2 = 49 mm at t = 0.1 s, within 1 mm.
+    assert!(mm.iter().all(|row| (row[0] - 49.0).abs() < 1.0), "{mm:?}");
+}
+
+/// Case A, Table 1 as calibrated: the paper's ordering of the energies at every frame, and
+/// frames 10, 50 and 120 within 10% of the paper for every energy (the issue's aim).
+#[test]
+fn case_a_table1_reproduces_the_ordering_and_stays_within_ten_percent() {
+    let t = table1(&[], 1, Some(1)).unwrap();
+    assert_eq!(t.ordering_matches, [true; 4], "{}", t.to_markdown());
+    assert!(
+        t.max_relative_difference_frames_10_to_120 <= 0.10,
+        "{}",
+        t.to_markdown()
+    );
+    let mm: [[f64; 4]; 3] = [0, 1, 2].map(|r| t.rows[r].ours_mm);
+    assert!((0..4).all(|f| ordering_holds(&mm, f, 1.0)));
+    assert_eq!(t.rows.len(), PAPER_MM.len());
+}
+
+/// Lateral contraction of case B at mid-span, m: bottom minus top vertical displacement.
+fn contraction(r: &RunResult) -> f64 {
+    last(r, "mid_bottom")[1] - last(r, "mid_top")[1]
+}
+
+/// Case B: "the StVK model exhibits more pronounced contraction compared to the corotational
+/// and Neo-Hookean models". At the scene's 40% stretch StVK contracts at least 20% more than
+/// either.
+#[test]
+fn case_b_stvk_contracts_more_than_corotational_and_neo_hookean() {
+    let c = |e: &str| contraction(&run("case-b", &[&format!("energy=\"{e}\"")]));
+    let (s, r, n) = (c("stvk"), c("corotational"), c("neo-hookean"));
+    assert!(
+        s > 1.2 * r && s > 1.2 * n,
+        "stvk {s}, corotational {r}, neo-hookean {n}"
+    );
+}
+
+/// Case B at small strain (0.2% stretch): every energy's lateral-to-axial strain ratio at
+/// mid-span equals the plane-strain Poisson value nu / (1 - nu) = 0.4286 within 1% (observed:
+/// 0.14% or better; the margin leaves room for the 20 x 4 mesh's discretisation error; the axial strain is measured between
+/// probes 1 m apart around mid-span, so the pinned ends' restraint does not bias it).
+#[test]
+fn case_b_small_stretch_matches_the_poisson_ratio() {
+    let nu: f64 = 0.3;
+    let expected = nu / (1.0 - nu);
+    for e in ENERGIES.iter().map(|e| e.name()).chain(["linear"]) {
+        let r = run(
+            "case-b",
+            &[
+                &format!("energy=\"{e}\""),
+                "prescribed.0.velocity=[0.01, 0.0]",
+            ],
+        );
+        let axial = last(&r, "axial_right")[0] - last(&r, "axial_left")[0];
+        let lateral = contraction(&r);
+        let ratio = lateral / axial;
+        assert!(
+            (ratio - expected).abs() / expected < 0.01,
+            "{e}: lateral {lateral:e} m / axial {axial:e} = {ratio}, expected {expected}"
+        );
+    }
+}
+
+/// Case B: "the StVK model required a smaller time step than the corotational and
+/// Neo-Hookean models to achieve stable simulations" at high Young's modulus. At E = 1 MPa
+/// and dt = 64 us StVK blows up during the stretch while co-rotational and Neo-Hookean stay
+/// stable; at dt = 45 us all three are stable (the bracket of `fixtures/sweeps/case-b-stability.toml`).
+#[test]
+fn case_b_stvk_needs_the_smaller_time_step_at_high_modulus() {
+    let stable = |energy: &str, dt: f64| {
+        let steps = (1.5 / dt).ceil() as u64;
+        let r = run(
+            "case-b",
+            &[
+                &format!("energy=\"{energy}\""),
+                "material.youngs_modulus=1e6",
+                &format!("solver.dt={dt:e}"),
+                &format!("solver.steps={steps}"),
+                "output.frame_every=100",
+            ],
+        );
+        !r.summary.blew_up
+    };
+    assert!(!stable("stvk", 6.4e-5), "stvk should blow up at 64 us");
+    assert!(stable("corotational", 6.4e-5));
+    assert!(stable("neo-hookean", 6.4e-5));
+    for e in ["stvk", "corotational", "neo-hookean"] {
+        assert!(stable(e, 4.5e-5), "{e} should be stable at 45 us");
+    }
+}
+
+/// Case C: "the deformation under the PBD framework is not significant": PBD's deepest tip
+/// deflection is under 10% of explicit's (10 iterations), while XPBD in the consistent form
+/// follows explicit (RMS deviation of the tip curve under 2% of explicit's deepest
+/// deflection) and the paper's literal XPBD form does not (over 10 times the consistent
+/// form's deviation).
+#[test]
+fn case_c_pbd_deflects_far_less_than_explicit_and_xpbd_forms_differ() {
+    let explicit = run("case-c", &[]);
+    let pbd = run("case-c", &["solver.kind=\"pbd\""]);
+    let xpbd = run("case-c", &["solver.kind=\"xpbd\""]);
+    let literal = run(
+        "case-c",
+        &["solver.kind=\"xpbd\"", "solver.xpbd_form=\"literal\""],
+    );
+    let deepest = |r: &RunResult| {
+        r.probe("tip")
+            .unwrap()
+            .iter()
+            .map(|u| u[1])
+            .fold(0.0, f64::min)
+    };
+    let e = deepest(&explicit);
+    assert!(e < -2.0, "explicit tip should fall over 2 m, got {e}");
+    assert!(
+        deepest(&pbd) > 0.1 * e,
+        "pbd {} vs explicit {e}",
+        deepest(&pbd)
+    );
+    let rms = |r: &RunResult| {
+        fem_cases::compare::rms_distance(r.probe("tip").unwrap(), explicit.probe("tip").unwrap())
+    };
+    assert!(rms(&xpbd) < 0.02 * e.abs(), "xpbd rms {}", rms(&xpbd));
+    assert!(
+        rms(&literal) > 10.0 * rms(&xpbd),
+        "literal {} vs consistent {}",
+        rms(&literal),
+        rms(&xpbd)
+    );
+}
+
+fn span_x(poly: &[[f64; 2]]) -> (f64, f64) {
+    poly.iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| {
+            (lo.min(p[0]), hi.max(p[0]))
+        })
+}
+
+/// The element with the largest final von Mises stress: its centroid.
+fn peak_centroid(r: &RunResult) -> [f64; 2] {
+    let (t, _) = r
+        .final_von_mises
+        .iter()
+        .enumerate()
+        .filter(|(_, v)| v.is_finite())
+        .max_by(|a, b| a.1.total_cmp(b.1))
+        .unwrap();
+    let c = r.triangles[t].map(|i| r.final_positions[i as usize]);
+    [
+        (c[0][0] + c[1][0] + c[2][0]) / 3.0,
+        (c[0][1] + c[1][1] + c[2][1]) / 3.0,
+    ]
+}
+
+/// Checks of a settled case D run: stable, no inverted element, and the peak von Mises stress
+/// (per element at the end, and the largest over the run) lies under the debris' x-span.
+fn assert_peak_under_debris(r: &RunResult) {
+    let s = &r.summary;
+    assert!(!s.blew_up, "{:?}", s.blow_up_message);
+    assert_eq!(s.inverted_elements, 0);
+    let (lo, hi) = span_x(&r.final_obstacles[0]);
+    let peak = peak_centroid(r);
+    assert!(
+        peak[0] >= lo && peak[0] <= hi,
+        "final peak at {peak:?}, debris spans x in [{lo}, {hi}]"
+    );
+    assert!(
+        s.max_von_mises_at[0] >= lo && s.max_von_mises_at[0] <= hi,
+        "peak over the run at {:?}, debris spans [{lo}, {hi}]",
+        s.max_von_mises_at
+    );
+    // The debris rests on the leg: it has sunk but not through it (it stays above the
+    // ground by more than a centimetre).
+    let bottom = r.final_obstacles[0]
+        .iter()
+        .map(|p| p[1])
+        .fold(f64::INFINITY, f64::min);
+    assert!(bottom > 0.01, "debris bottom at {bottom} m");
+}
+
+/// Case D on the built-in body: "the stress distribution on the leg when compressed by the
+/// debris": the peak von Mises stress lies under the debris.
+#[test]
+fn case_d_peak_von_mises_lies_under_the_debris() {
+    let r = run("case-d", &[]);
+    assert_peak_under_debris(&r);
+}
+
+/// Case D on the real MakeHuman body (`../shared/fixtures/human/makehuman_base.obj`,
+/// decimetres, so scale 0.1): the same claim, with the debris placed over that body's shin.
+/// Set `FEM2D_SKIP_SHARED_FIXTURES=1` to skip where the shared fixtures are not available.
+#[test]
+fn case_d_on_the_real_body() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../../shared/fixtures/human/makehuman_base.obj");
+    if !path.exists() {
+        if std::env::var_os("FEM2D_SKIP_SHARED_FIXTURES").is_some() {
+            eprintln!("skipped: {} not found", path.display());
+            return;
+        }
+        panic!(
+            "{} not found (set FEM2D_SKIP_SHARED_FIXTURES=1 to skip)",
+            path.display()
+        );
+    }
+    let r = run(
+        "case-d",
+        &[
+            "mesh.kind=\"model\"",
+            &format!("mesh.path={:?}", path.display().to_string()),
+            "mesh.groups=[\"body\"]",
+            "mesh.scale=0.1",
+            "mesh.alpha=0.025",
+            "mesh.max_area=1e-3",
+            "mesh.rotate_deg=86.64",
+            "obstacles.0.polygon=[[1.3089, 0.1358], [1.5289, 0.1358], [1.5289, 0.3158], [1.3089, 0.3158]]",
+            "probes.0.point=[1.42, 0.13]",
+        ],
+    );
+    assert!(r.summary.triangles > 300, "{}", r.summary.triangles);
+    assert_peak_under_debris(&r);
+}
