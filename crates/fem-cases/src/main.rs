@@ -31,7 +31,22 @@ enum Command {
 }
 
 fn main() -> std::process::ExitCode {
-    let args = Fem2d::parse();
+    let args = match Fem2d::try_parse() {
+        Ok(args) => args,
+        Err(e) if !e.use_stderr() => {
+            // --help and --version.
+            let _ = e.print();
+            return std::process::ExitCode::SUCCESS;
+        }
+        Err(e) => {
+            // clap's message spans several lines (usage, tips); the contract is one line.
+            let text = e.to_string();
+            let first = text.lines().next().unwrap_or("invalid arguments");
+            let first = first.strip_prefix("error: ").unwrap_or(first);
+            eprintln!("error: {first} (see fem2d --help)");
+            return std::process::ExitCode::from(2);
+        }
+    };
     let result = match args.command {
         Command::Run(a) => cli::run::run(&a),
         Command::Compare(a) => cli::compare::run(&a),

@@ -550,7 +550,9 @@ pub fn parse_scene(
     }
     let scene: Scene = serde_path_to_error::deserialize(toml::Value::Table(table)).map_err(
         |e: serde_path_to_error::Error<toml::de::Error>| {
-            let path = e.path().to_string();
+            // serde writes array elements as `pinned[0].max`; --set and the checks below use
+            // `pinned.0.max`: one spelling everywhere.
+            let path = e.path().to_string().replace('[', ".").replace(']', "");
             let inner = e.inner().message().trim().replace('\n', " ");
             if path == "." || path.is_empty() {
                 CaseError::Scene(format!("{origin}: {inner}"))

@@ -56,7 +56,7 @@ pub enum SolverError {
     /// The run blew up: a position or velocity became NaN or infinite. The state is left at
     /// the last good step.
     #[error(
-        "step {step} (t = {time} s): vertex {vertex} became non-finite (x = [{x}, {y}], v = [{vx}, {vy}]); {inverted} inverted elements, min det F = {min_det_f}"
+        "step {step} (t = {time} s): vertex {vertex} became non-finite (x = [{x:.4e}, {y:.4e}], v = [{vx:.4e}, {vy:.4e}]); {inverted} inverted elements, min det F = {min_det_f:.4e}"
     )]
     NonFinite {
         /// Index of the step that failed (0-based count of steps taken before it).

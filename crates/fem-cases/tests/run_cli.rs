@@ -1,0 +1,606 @@
+//! `fem2d run` end to end: every output file in its contract form (`summary.json`,
+//! `probes.csv`, `frames.jsonl`, `mesh.json`, `scene.toml`), the written scene reproducing the
+//! run, every built-in case, the energy / solver / thread / `--set` flags, bad input ending with
+//! one `error:` line and no output file, and a run that blows up.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use serde_json::Value;
+
+fn fem2d(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_fem2d"))
+        .args(args)
+        .output()
+        .expect("fem2d runs")
+}
+
+/// Runs `fem2d run ARGS --out DIR -q` and checks it succeeded with nothing on stderr.
+fn run_ok(args: &[&str], dir: &Path) -> Output {
+    let mut all = vec!["run"];
+    all.extend(args);
+    all.extend(["--out", arg(dir), "-q"]);
+    let out = fem2d(&all);
+    assert!(
+        out.status.success(),
+        "{all:?} failed:\n{}\n{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        out.stderr.is_empty(),
+        "{all:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
+
+/// A fresh, empty directory for one test.
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("fem2d-run-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn arg(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+fn read(path: &Path) -> String {
+    std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+fn json(path: &Path) -> Value {
+    serde_json::from_str(&read(path)).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+/// The names in `dir`, sorted.
+fn listing(dir: &Path) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    names
+}
+
+const OUTPUTS: [&str; 5] = [
+    "frames.jsonl",
+    "mesh.json",
+    "probes.csv",
+    "scene.toml",
+    "summary.json",
+];
+
+/// `probes.csv` as a header and rows of numbers.
+fn csv(path: &Path) -> (Vec<String>, Vec<Vec<f64>>) {
+    let text = read(path);
+    let mut lines = text.lines();
+    let header: Vec<String> = lines
+        .next()
+        .unwrap()
+        .split(',')
+        .map(str::to_owned)
+        .collect();
+    let rows: Vec<Vec<f64>> = lines
+        .map(|l| {
+            let row: Vec<f64> = l.split(',').map(|v| v.parse().unwrap()).collect();
+            assert_eq!(row.len(), header.len(), "{l}");
+            row
+        })
+        .collect();
+    (header, rows)
+}
+
+/// The summary without the fields that measure time.
+fn without_timings(mut summary: Value) -> Value {
+    let map = summary.as_object_mut().unwrap();
+    for key in [
+        "wall_seconds",
+        "step_seconds",
+        "element_steps_per_second",
+        "real_time_factor",
+    ] {
+        assert!(map.remove(key).is_some(), "{key}");
+    }
+    summary
+}
+
+/// Every field the BRIEF's run-output contract names, with its JSON type.
+fn check_contract_fields(s: &Value) {
+    for key in ["scene", "energy", "solver"] {
+        assert!(s[key].is_string(), "{key}: {}", s[key]);
+    }
+    for key in ["steps", "vertices", "triangles", "inverted_elements"] {
+        assert!(s[key].is_u64(), "{key}: {}", s[key]);
+    }
+    for key in [
+        "dt",
+        "wall_seconds",
+        "element_steps_per_second",
+        "max_von_mises",
+        "min_det_f",
+    ] {
+        assert!(s[key].is_f64(), "{key}: {}", s[key]);
+        assert!(s[key].as_f64().unwrap().is_finite(), "{key}");
+    }
+    assert!(s["blew_up"].is_boolean());
+    assert!(s["wall_seconds"].as_f64().unwrap() >= 0.0);
+    assert!(s["element_steps_per_second"].as_f64().unwrap() >= 0.0);
+    assert!(s["max_von_mises"].as_f64().unwrap() >= 0.0);
+    // Which plane model and von Mises formula the run used.
+    assert!(s["plane"].is_string() && s["von_mises_formula"].is_string());
+}
+
+#[test]
+fn case_a_writes_every_output_in_contract_form() {
+    let dir = scratch("case-a");
+    let out_dir = dir.join("out");
+    let out = run_ok(&["case-a", "--steps", "200"], &out_dir);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("probe tip"), "{stdout}");
+    assert_eq!(listing(&out_dir), OUTPUTS, "no temporary file is left");
+
+    // summary.json
+    let s = json(&out_dir.join("summary.json"));
+    check_contract_fields(&s);
+    assert_eq!(s["scene"], "case-a");
+    assert_eq!(s["energy"], "stvk");
+    assert_eq!(s["solver"], "explicit");
+    assert_eq!(s["dt"], 1e-3);
+    assert_eq!(s["steps"], 200);
+    assert_eq!(s["steps_completed"], 200);
+    assert_eq!(s["blew_up"], false);
+    assert!(s["blow_up_message"].is_null());
+    assert_eq!(s["plane"], "plane-strain");
+    let (nv, nt) = (
+        s["vertices"].as_u64().unwrap() as usize,
+        s["triangles"].as_u64().unwrap() as usize,
+    );
+    assert_eq!((nv, nt), (21 * 5, 20 * 4 * 2));
+    assert!(s["max_von_mises"].as_f64().unwrap() > 0.0);
+    let min_det_f = s["min_det_f"].as_f64().unwrap();
+    assert!(min_det_f > 0.5 && min_det_f < 1.0, "{min_det_f}");
+    assert_eq!(s["inverted_elements"], 0);
+    let probe = &s["probes"][0];
+    assert_eq!(probe["name"], "tip");
+    assert_eq!(probe["rest"], serde_json::json!([5.0, 0.0]));
+    let tip = probe["vertex"].as_u64().unwrap() as usize;
+
+    // probes.csv: step 0 and every 10th step, times step * dt, displacements in metres.
+    let (header, rows) = csv(&out_dir.join("probes.csv"));
+    assert_eq!(header, ["step", "time", "tip.ux", "tip.uy"]);
+    assert_eq!(rows.len(), 21);
+    for (k, row) in rows.iter().enumerate() {
+        assert_eq!(row[0], (10 * k) as f64);
+        assert!((row[1] - row[0] * 1e-3).abs() <= 1e-12, "{row:?}");
+    }
+    assert_eq!(rows[0][2..], [0.0, 0.0]);
+    // The cantilever falls: about 1/2 g t^2 = 49 mm at frame 10 (0.1 s).
+    let uy10 = rows[10][3];
+    assert!((uy10 + 0.049).abs() < 0.003, "{uy10}");
+    let last = rows.last().unwrap();
+    assert_eq!(
+        [last[2], last[3]],
+        [
+            probe["final_displacement"][0].as_f64().unwrap(),
+            probe["final_displacement"][1].as_f64().unwrap()
+        ]
+    );
+
+    // mesh.json: the contract format, counter-clockwise triangles.
+    let mesh = json(&out_dir.join("mesh.json"));
+    let vertices: Vec<[f64; 2]> = serde_json::from_value(mesh["vertices"].clone()).unwrap();
+    let triangles: Vec<[usize; 3]> = serde_json::from_value(mesh["triangles"].clone()).unwrap();
+    assert_eq!((vertices.len(), triangles.len()), (nv, nt));
+    for t in &triangles {
+        let [a, b, c] = t.map(|i| vertices[i]);
+        let area2 = (b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1]);
+        assert!(area2 > 0.0, "{t:?} is not counter-clockwise");
+    }
+    assert_eq!(vertices[tip], [5.0, 0.0]);
+    let reread = fem_mesh::io::read_mesh_json(&out_dir.join("mesh.json")).unwrap();
+    assert_eq!(reread.vertices, vertices);
+
+    // frames.jsonl: one JSON object per frame, in step with probes.csv.
+    let frames = read(&out_dir.join("frames.jsonl"));
+    let frames: Vec<Value> = frames
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(frames.len(), rows.len());
+    for (frame, row) in frames.iter().zip(&rows) {
+        assert_eq!(frame["step"].as_f64().unwrap(), row[0]);
+        assert_eq!(frame["time"].as_f64().unwrap(), row[1]);
+        let x: Vec<f64> = serde_json::from_value(frame["positions"].clone()).unwrap();
+        assert_eq!(x.len(), 2 * nv);
+        assert_eq!(frame["von_mises"].as_array().unwrap().len(), nt);
+        assert_eq!(frame["obstacles"], serde_json::json!([]));
+        // The probe column is the tracked vertex's displacement.
+        assert_eq!(x[2 * tip] - vertices[tip][0], row[2]);
+        assert_eq!(x[2 * tip + 1] - vertices[tip][1], row[3]);
+    }
+    let first: Vec<f64> = serde_json::from_value(frames[0]["positions"].clone()).unwrap();
+    assert_eq!(first, vertices.concat(), "frame 0 is the rest mesh");
+
+    // scene.toml reproduces the run.
+    let again = dir.join("again");
+    run_ok(&[arg(&out_dir.join("scene.toml"))], &again);
+    assert_eq!(
+        without_timings(json(&again.join("summary.json"))),
+        without_timings(s)
+    );
+    for name in ["probes.csv", "frames.jsonl", "mesh.json", "scene.toml"] {
+        assert_eq!(read(&again.join(name)), read(&out_dir.join(name)), "{name}");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn cases_b_c_d_run_a_few_steps() {
+    let dir = scratch("cases");
+    for (case, energy, rows) in [
+        ("case-b", "stvk", 3),
+        ("case-c", "stvk", 3),
+        // frame_every = 100: step 0 and the last step.
+        ("case-d", "neo-hookean", 2),
+    ] {
+        let out_dir = dir.join(case);
+        run_ok(&[case, "--steps", "20"], &out_dir);
+        assert_eq!(listing(&out_dir), OUTPUTS, "{case}");
+        let s = json(&out_dir.join("summary.json"));
+        check_contract_fields(&s);
+        assert_eq!(s["scene"], case);
+        assert_eq!(s["energy"], energy);
+        assert_eq!(s["solver"], "explicit");
+        assert_eq!(s["steps"], 20);
+        assert_eq!(s["blew_up"], false);
+        let (header, data) = csv(&out_dir.join("probes.csv"));
+        let mut expected = vec!["step".to_owned(), "time".to_owned()];
+        for p in &fem_cases::cases::load_case(case, &[]).unwrap().scene.probes {
+            expected.push(format!("{}.ux", p.name));
+            expected.push(format!("{}.uy", p.name));
+        }
+        assert!(expected.len() > 2, "{case} has probes");
+        assert_eq!(header, expected, "{case}");
+        assert_eq!(data.len(), rows, "{case}");
+        assert_eq!(data.last().unwrap()[0], 20.0, "{case}");
+        let frames = read(&out_dir.join("frames.jsonl"));
+        assert_eq!(frames.lines().count(), rows, "{case}");
+        let nv = s["vertices"].as_u64().unwrap() as usize;
+        let last: Value = serde_json::from_str(frames.lines().last().unwrap()).unwrap();
+        assert_eq!(last["positions"].as_array().unwrap().len(), 2 * nv);
+        let mesh = fem_mesh::io::read_mesh_json(&out_dir.join("mesh.json")).unwrap();
+        assert_eq!(mesh.vertices.len(), nv, "{case}");
+        if case == "case-d" {
+            // The debris: one obstacle polygon of four corners in every frame.
+            assert_eq!(last["obstacles"].as_array().unwrap().len(), 1);
+            assert_eq!(last["obstacles"][0].as_array().unwrap().len(), 4);
+        }
+        if case == "case-b" {
+            // The right end is pulled at 2 m/s: 0.04 m after 0.02 s.
+            let column = header.iter().position(|h| h == "right.ux").unwrap();
+            let right_ux = data.last().unwrap()[column];
+            assert!((right_ux - 0.04).abs() < 1e-9, "{right_ux}");
+        }
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn energy_and_solver_flags_reach_the_run() {
+    let dir = scratch("flags");
+    let mut tips = Vec::new();
+    for energy in [
+        "stvk",
+        "corotational",
+        "neo-hookean",
+        "stable-neo-hookean",
+        "linear",
+    ] {
+        let out_dir = dir.join(energy);
+        run_ok(&["case-a", "--steps", "30", "--energy", energy], &out_dir);
+        let s = json(&out_dir.join("summary.json"));
+        assert_eq!(s["energy"], energy);
+        assert!(read(&out_dir.join("scene.toml")).contains(&format!("energy = \"{energy}\"")));
+        tips.push(s["probes"][0]["final_displacement"][1].as_f64().unwrap());
+    }
+    assert!(tips.iter().all(|u| *u < 0.0), "{tips:?}");
+    for solver in ["explicit", "pbd", "xpbd"] {
+        let out_dir = dir.join(solver);
+        run_ok(
+            &[
+                "case-c", "--steps", "30", "--solver", solver, "--dt", "2e-3",
+            ],
+            &out_dir,
+        );
+        let s = json(&out_dir.join("summary.json"));
+        check_contract_fields(&s);
+        assert_eq!(s["solver"], solver);
+        assert_eq!(s["dt"], 2e-3);
+        assert_eq!(s["blew_up"], false);
+        let (_, rows) = csv(&out_dir.join("probes.csv"));
+        assert_eq!(rows.len(), 4);
+        assert!((rows[3][1] - 0.06).abs() < 1e-12);
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn thread_count_does_not_change_the_numbers() {
+    let dir = scratch("threads");
+    for solver in ["explicit", "pbd", "xpbd"] {
+        let one = dir.join(format!("{solver}-1"));
+        let two = dir.join(format!("{solver}-2"));
+        let common = ["case-a", "--steps", "100", "--solver", solver];
+        run_ok(&[&common[..], &["--threads", "1"]].concat(), &one);
+        run_ok(&[&common[..], &["--threads", "2"]].concat(), &two);
+        assert_eq!(json(&one.join("summary.json"))["threads"], 1);
+        assert_eq!(json(&two.join("summary.json"))["threads"], 2);
+        for name in ["probes.csv", "frames.jsonl"] {
+            assert_eq!(
+                read(&one.join(name)),
+                read(&two.join(name)),
+                "{solver}: {name} differs between 1 and 2 threads"
+            );
+        }
+        let (a, b) = (
+            without_timings(json(&one.join("summary.json"))),
+            without_timings(json(&two.join("summary.json"))),
+        );
+        let strip = |mut v: Value| {
+            v.as_object_mut().unwrap().remove("threads");
+            v
+        };
+        assert_eq!(strip(a), strip(b), "{solver}");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn set_changes_the_result() {
+    let dir = scratch("set");
+    let (soft, stiff) = (dir.join("soft"), dir.join("stiff"));
+    run_ok(&["case-a", "--steps", "300"], &soft);
+    run_ok(
+        &[
+            "case-a",
+            "--steps",
+            "300",
+            "--set",
+            "material.youngs_modulus=2000",
+        ],
+        &stiff,
+    );
+    assert!(read(&stiff.join("scene.toml")).contains("youngs_modulus = 2000.0"));
+    let (_, a) = csv(&soft.join("probes.csv"));
+    let (_, b) = csv(&stiff.join("probes.csv"));
+    assert_eq!(a.len(), b.len());
+    assert_ne!(a, b);
+    // Twice as stiff: the tip sags less.
+    let (ua, ub) = (a.last().unwrap()[3], b.last().unwrap()[3]);
+    assert!(ub > ua, "stiff {ub} vs soft {ua}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn scene_file_with_a_relative_mesh_path_runs_and_reruns_from_its_copy() {
+    let dir = scratch("file-mesh");
+    std::fs::create_dir_all(dir.join("scenes/meshes")).unwrap();
+    std::fs::write(
+        dir.join("scenes/meshes/strip.json"),
+        r#"{"vertices": [[0,0],[1,0],[2,0],[0,1],[1,1],[2,1]],
+            "triangles": [[0,1,4],[0,4,3],[1,2,5],[1,5,4]]}"#,
+    )
+    .unwrap();
+    std::fs::write(
+        dir.join("scenes/strip.toml"),
+        r#"name = "strip"
+energy = "corotational"
+[mesh]
+kind = "file"
+path = "meshes/strip.json"
+[material]
+youngs_modulus = 1e4
+poisson_ratio = 0.3
+density = 1.0
+[solver]
+dt = 1e-3
+steps = 20
+[[pinned]]
+min = [0.0, 0.0]
+max = [0.0, 1.0]
+[[probes]]
+name = "corner"
+point = [2.0, 0.0]
+[output]
+frame_every = 5
+frames = false
+"#,
+    )
+    .unwrap();
+    let first = dir.join("first");
+    run_ok(&[arg(&dir.join("scenes/strip.toml"))], &first);
+    assert_eq!(
+        listing(&first),
+        ["mesh.json", "probes.csv", "scene.toml", "summary.json"],
+        "frames = false writes no frames.jsonl"
+    );
+    let s = json(&first.join("summary.json"));
+    assert_eq!(
+        (s["vertices"].as_u64(), s["triangles"].as_u64()),
+        (Some(6), Some(4))
+    );
+    assert_eq!(s["scene"], "strip");
+    let (header, rows) = csv(&first.join("probes.csv"));
+    assert_eq!(header, ["step", "time", "corner.ux", "corner.uy"]);
+    assert_eq!(rows.len(), 5);
+    // The copy written beside the outputs finds the mesh too.
+    let second = dir.join("second");
+    run_ok(&[arg(&first.join("scene.toml"))], &second);
+    assert_eq!(
+        read(&second.join("probes.csv")),
+        read(&first.join("probes.csv"))
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// Bad input: non-zero exit, exactly one stderr line `error: ...` containing every needle, and
+/// no output in `--out`.
+#[test]
+fn bad_input_is_one_error_line_and_no_output() {
+    let dir = scratch("bad");
+    let malformed = dir.join("malformed.toml");
+    std::fs::write(
+        &malformed,
+        "name = \"m\"\n[mesh]\nkind = \"rectangle\"\nwidth = 5.0 x\n",
+    )
+    .unwrap();
+    let typo = dir.join("typo.toml");
+    std::fs::write(
+        &typo,
+        fem_cases::cases::case_text("case-a")
+            .unwrap()
+            .replace("youngs_modulus", "youngs_modulos"),
+    )
+    .unwrap();
+    let no_mesh = dir.join("no-mesh.toml");
+    std::fs::write(
+        &no_mesh,
+        fem_cases::cases::case_text("case-a").unwrap().replace(
+            "kind = \"rectangle\"\nwidth = 5.0\nheight = 1.0\nnx = 20\nny = 4\ndiagonal = \"left\"\n",
+            "kind = \"file\"\npath = \"absent.json\"\n",
+        ),
+    )
+    .unwrap();
+    let missing = dir.join("missing.toml");
+    let malformed_s = malformed.display().to_string();
+    let typo_s = typo.display().to_string();
+    let missing_s = missing.display().to_string();
+    let cases: Vec<(Vec<&str>, Vec<&str>)> = vec![
+        (vec!["case-z"], vec!["`case-z`", "case-a"]),
+        (vec![arg(&missing)], vec![&missing_s, "cannot read"]),
+        (vec![arg(&malformed)], vec![&malformed_s, ":4:"]),
+        (
+            vec![arg(&typo)],
+            vec![&typo_s, "material.youngs_modulos", "unknown field"],
+        ),
+        (vec![arg(&no_mesh)], vec!["absent.json"]),
+        (
+            vec!["case-a", "--set", "material.youngs_modulus=abc"],
+            vec!["built-in case-a", "material.youngs_modulus", "abc"],
+        ),
+        (
+            vec!["case-a", "--set", "material.youngs_modulus=nan"],
+            vec!["material.youngs_modulus = NaN"],
+        ),
+        (
+            vec!["case-a", "--set", "material.poisson_ratio=0.5"],
+            vec!["material.poisson_ratio = 0.5"],
+        ),
+        (vec!["case-a", "--set", "nonsense"], vec!["nonsense"]),
+        (
+            vec!["case-a", "--set", "pinned.2.min=[0.0, 0.0]"],
+            vec!["pinned.2.min", "past the end"],
+        ),
+        (
+            vec![
+                "case-a",
+                "--set",
+                "pinned.0.min=[9.0, 9.0]",
+                "--set",
+                "pinned.0.max=[9.5, 9.5]",
+            ],
+            vec!["pinned.0", "[9.0, 9.0]", "contains no mesh vertex"],
+        ),
+        (vec!["case-a", "--dt", "-1"], vec!["solver.dt = -1"]),
+        (vec!["case-a", "--dt", "0"], vec!["solver.dt = 0"]),
+        (vec!["case-a", "--steps", "0"], vec!["solver.steps = 0"]),
+        (
+            vec!["case-a", "--energy", "foo"],
+            vec!["energy", "`foo`", "stvk"],
+        ),
+        (
+            vec!["case-a", "--solver", "implicit"],
+            vec!["solver.kind = implicit", "not available"],
+        ),
+        (
+            vec!["case-a", "--solver", "euler"],
+            vec!["solver.kind", "euler"],
+        ),
+        (vec!["case-a", "--threads", "0"], vec!["--threads"]),
+    ];
+    for (k, (extra, needles)) in cases.iter().enumerate() {
+        let out_dir = dir.join(format!("out-{k}"));
+        let mut args = vec!["run"];
+        args.extend(extra);
+        args.extend(["--out", arg(&out_dir)]);
+        let out = fem2d(&args);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{extra:?} should fail");
+        let lines: Vec<&str> = stderr.lines().collect();
+        assert_eq!(lines.len(), 1, "{extra:?}: {stderr}");
+        assert!(lines[0].starts_with("error: "), "{extra:?}: {stderr}");
+        for n in needles {
+            assert!(lines[0].contains(n), "{extra:?}: {n:?} missing: {stderr}");
+        }
+        assert!(
+            !out_dir.exists() || listing(&out_dir).is_empty(),
+            "{extra:?} left {:?}",
+            listing(&out_dir)
+        );
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn a_run_that_blows_up_fails_and_says_so_in_the_summary() {
+    let dir = scratch("blow-up");
+    let out_dir = dir.join("out");
+    // 0.05 s is more than twenty times the explicit stability limit of case A.
+    let out = fem2d(&[
+        "run",
+        "case-a",
+        "--dt",
+        "0.05",
+        "--steps",
+        "200",
+        "--out",
+        arg(&out_dir),
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{stderr}");
+    let errors: Vec<&str> = stderr.lines().filter(|l| l.starts_with("error:")).collect();
+    assert_eq!(errors.len(), 1, "{stderr}");
+    let error = errors[0];
+    assert!(error.contains("blew up") && error.contains("built-in case-a"));
+    assert!(
+        stderr
+            .lines()
+            .all(|l| l.starts_with("error:") || l.starts_with("warning:")),
+        "{stderr}"
+    );
+    // The outputs describe the run up to the blow-up.
+    assert_eq!(listing(&out_dir), OUTPUTS);
+    let s = json(&out_dir.join("summary.json"));
+    check_contract_fields(&s);
+    assert_eq!(s["blew_up"], true);
+    let message = s["blow_up_message"].as_str().unwrap();
+    assert!(message.contains("step"), "{message}");
+    let done = s["steps_completed"].as_u64().unwrap();
+    assert!(done < 200, "{done}");
+    assert!(s["time_step_warning"].is_string());
+    let (_, rows) = csv(&out_dir.join("probes.csv"));
+    assert_eq!(rows.first().unwrap()[0], 0.0);
+    assert_eq!(
+        rows.last().unwrap()[0],
+        done as f64,
+        "the last frame is the last good state"
+    );
+    assert_eq!(
+        read(&out_dir.join("frames.jsonl")).lines().count(),
+        rows.len()
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
