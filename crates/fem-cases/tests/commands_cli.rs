@@ -1,0 +1,230 @@
+//! `fem2d compare`, `table1`, `sweep` and `merge` end to end: the files they write, shards that
+//! cover a sweep exactly once, the merge's refusal of incomplete or mixed shards, and one-line
+//! errors for bad input.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn fem2d(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_fem2d"))
+        .args(args)
+        .output()
+        .expect("fem2d runs")
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("fem2d-cmd-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+fn ok(out: &Output) -> String {
+    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+    assert!(
+        out.status.success(),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    stdout
+}
+
+fn one_line_error(out: &Output) -> String {
+    assert!(!out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    let lines: Vec<&str> = stderr.lines().collect();
+    assert_eq!(lines.len(), 1, "{stderr}");
+    assert!(lines[0].starts_with("error: "), "{stderr}");
+    stderr
+}
+
+#[test]
+fn compare_writes_markdown_csv_and_json_with_one_row_per_combination() {
+    let dir = scratch("compare");
+    let out = ok(&fem2d(&[
+        "compare",
+        "case-c",
+        "--energies",
+        "stvk,neo-hookean",
+        "--solvers",
+        "explicit,pbd,xpbd",
+        "--iterations",
+        "5,10",
+        "--set",
+        "solver.steps=100",
+        "--threads",
+        "1",
+        "--out",
+        s(&dir),
+    ]));
+    assert!(out.contains("| stvk | pbd | 5 it |"), "{out}");
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("compare.json")).unwrap()).unwrap();
+    // Per energy: explicit, pbd x 2 iteration counts, xpbd x 2.
+    assert_eq!(json["rows"].as_array().unwrap().len(), 2 * 5);
+    let csv = std::fs::read_to_string(dir.join("compare.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 1 + 10);
+    assert!(csv.starts_with("energy,solver,variant,stable,steps_completed,tip.ux"));
+    // Rows after the explicit one carry their distance from it.
+    assert!(json["rows"][1]["probes"][0]["rms_vs_explicit"].is_number());
+    assert!(
+        std::fs::read_to_string(dir.join("compare.md")).unwrap()
+            == out
+                .lines()
+                .take_while(|l| !l.starts_with("wrote"))
+                .collect::<Vec<_>>()
+                .join("\n")
+                + "\n"
+    );
+}
+
+#[test]
+fn compare_rejects_unknown_names_in_one_line() {
+    one_line_error(&fem2d(&["compare", "case-a", "--energies", "stvk,foo"]));
+    one_line_error(&fem2d(&["compare", "case-a", "--solvers", "implicit"]));
+    one_line_error(&fem2d(&["compare", "case-z"]));
+}
+
+#[test]
+fn table1_json_has_three_energies_and_the_paper_values() {
+    let out = ok(&fem2d(&[
+        "table1",
+        "--json",
+        "--repeats",
+        "1",
+        "--threads",
+        "1",
+    ]));
+    let t: serde_json::Value = serde_json::from_str(&out).unwrap();
+    let rows = t["rows"].as_array().unwrap();
+    assert_eq!(rows.len(), 3);
+    assert_eq!(rows[0]["energy"], "stvk");
+    assert_eq!(rows[0]["paper_mm"][1], 1269.0);
+    assert_eq!(
+        t["ordering_matches"],
+        serde_json::json!([true, true, true, true])
+    );
+}
+
+const SPEC: &str = r#"
+scene = "case-a"
+set = ["solver.steps=40", "output.frame_every=20"]
+
+[[axis]]
+key = "energy"
+values = ["stvk", "neo-hookean", "corotational"]
+
+[[axis]]
+key = "solver.dt"
+values = [1e-3, 0.05]
+"#;
+
+#[test]
+fn shards_cover_a_sweep_once_and_merge_joins_them() {
+    let dir = scratch("sweep");
+    let spec = dir.join("spec.toml");
+    std::fs::write(&spec, SPEC).unwrap();
+    let shards = dir.join("shards");
+    for i in 0..4 {
+        ok(&fem2d(&[
+            "sweep",
+            s(&spec),
+            "--shard",
+            &format!("{i}/4"),
+            "--threads",
+            "1",
+            "--out",
+            s(&shards),
+        ]));
+    }
+    let merged = dir.join("merged");
+    // A missing shard is named in one line and nothing is written.
+    let partial = [0, 1, 2].map(|i| shards.join(format!("shard-{i}-of-4.json")));
+    let mut args = vec!["merge"];
+    args.extend(partial.iter().map(|p| s(p)));
+    args.extend(["--out", s(&merged)]);
+    let err = one_line_error(&fem2d(&args));
+    assert!(err.contains("1 of 6 jobs are missing (first: 3)"), "{err}");
+    assert!(!merged.join("sweep.json").exists());
+
+    let out = ok(&fem2d(&["merge", s(&shards), "--out", s(&merged)]));
+    assert!(out.contains("Largest stable time step"), "{out}");
+    let m: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(merged.join("sweep.json")).unwrap()).unwrap();
+    let results = m["results"].as_array().unwrap();
+    assert_eq!(results.len(), 6);
+    for (k, r) in results.iter().enumerate() {
+        assert_eq!(r["job"]["index"], k);
+    }
+    // dt = 0.05 s is far beyond the explicit limit: every energy blows up there, and the
+    // stability table says 1e-3 is the largest stable step.
+    for r in results {
+        let dt = &r["job"]["params"][1][1];
+        assert_eq!(r["summary"]["blew_up"], dt == "0.05", "{r}");
+    }
+    assert!(out.contains("| stvk | 1e-3 | 5e-2 |"), "{out}");
+    let csv = std::fs::read_to_string(merged.join("sweep.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 7);
+
+    // Shards of a different spec are refused.
+    let other = dir.join("other.toml");
+    std::fs::write(&other, SPEC.replace("solver.steps=40", "solver.steps=30")).unwrap();
+    let other_dir = dir.join("other");
+    ok(&fem2d(&[
+        "sweep",
+        s(&other),
+        "--shard",
+        "0/4",
+        "--out",
+        s(&other_dir),
+    ]));
+    let mixed = other_dir.join("shard-0-of-4.json");
+    let err = one_line_error(&fem2d(&[
+        "merge",
+        s(&shards.join("shard-1-of-4.json")),
+        s(&mixed),
+        "--out",
+        s(&dir.join("mixed")),
+    ]));
+    assert!(err.contains("different sweep spec"), "{err}");
+}
+
+#[test]
+fn sweep_rejects_bad_specs_and_shards_in_one_line() {
+    let dir = scratch("sweep-bad");
+    let spec = dir.join("spec.toml");
+    std::fs::write(&spec, SPEC).unwrap();
+    let out = dir.join("out");
+    one_line_error(&fem2d(&[
+        "sweep",
+        s(&spec),
+        "--shard",
+        "4/4",
+        "--out",
+        s(&out),
+    ]));
+    one_line_error(&fem2d(&[
+        "sweep",
+        s(&spec),
+        "--shard",
+        "x",
+        "--out",
+        s(&out),
+    ]));
+    std::fs::write(&spec, "scene = \"case-a\"\n").unwrap();
+    one_line_error(&fem2d(&["sweep", s(&spec), "--out", s(&out)]));
+    std::fs::write(&spec, "scene = \"case-a\"\n[[axis]]\nkeys = [\"mesh.nx\", \"mesh.ny\"]\nvalues = [[10, 2], [3]]\n").unwrap();
+    let err = one_line_error(&fem2d(&["sweep", s(&spec), "--out", s(&out)]));
+    assert!(err.contains("axis.0.values.1"), "{err}");
+    one_line_error(&fem2d(&[
+        "sweep",
+        s(&dir.join("missing.toml")),
+        "--out",
+        s(&out),
+    ]));
+    assert!(!out.exists() || std::fs::read_dir(&out).unwrap().next().is_none());
+}
