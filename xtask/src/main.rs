@@ -1,12 +1,44 @@
 //! `cargo xtask`: the project's only script host (see `.cargo/config.toml` for the alias).
 //!
 //! - `cargo xtask ci`: what `.ci/run` checks, in the same order (format, clippy on all targets
-//!   with warnings denied, the test suite, and compiling the benches).
+//!   with warnings denied, the test suite, Table 1 against its baseline, and compiling the
+//!   benches).
 //! - `cargo xtask bench [ARGS...]`: the criterion benches of every crate, arguments passed on
 //!   (`cargo xtask bench -- forces/neo-hookean`).
 //! - `cargo xtask tidy`: the style and layering checks alone (they also run under `cargo test`).
+//! - `cargo xtask table1 [--check]`: regenerate `docs/table1.md` and the baseline
+//!   `docs/table1.json` from `fem2d table1`; `--check` compares a fresh run with the baseline
+//!   (1 mm tolerance) and is part of CI.
+//! - `cargo xtask bench-cases [--quick] [--out DIR]`: every case x energy x solver on one
+//!   thread, best of 3, into `docs/bench-cases.md` and `docs/bench-cases.json`.
+//! - `cargo xtask goldens`: regenerate `fixtures/goldens/case-{a,b,c,d}.json`, checked by
+//!   `crates/fem-cases/tests/goldens.rs`.
+//!
+//! xtask depends on no workspace crate (the layering in `ARCHITECTURE.md`): it drives the
+//! release `fem2d` binary as a subprocess and reads its JSON.
+
+mod bench_cases;
+mod goldens;
+mod table1;
+mod util;
 
 use std::process::{Command, ExitCode};
+
+const USAGE: &str = "usage: cargo xtask <task> [ARGS...]
+
+tasks:
+  ci                   what .ci/run checks: fmt, clippy (warnings denied), tests, Table 1
+                       against its baseline, benches compile
+  bench [ARGS...]      the criterion benches of every crate (arguments passed on)
+  tidy                 the style and layering checks alone
+  table1 [--check]     regenerate docs/table1.md and docs/table1.json from `fem2d table1`;
+                       --check: fail when a tip displacement moved by more than 1 mm
+  bench-cases [--quick] [--out DIR]
+                       cases A-D x 5 energies x 3 solvers on one thread, best of 3, into
+                       docs/bench-cases.{md,json}; --quick: one repeat, a tenth of the steps,
+                       printed (written only with --out)
+  goldens              regenerate fixtures/goldens/case-{a,b,c,d}.json (checked by
+                       cargo test -p fem-cases --test goldens)";
 
 fn cargo(args: &[&str]) -> Result<(), String> {
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".to_owned());
@@ -36,6 +68,7 @@ fn run(args: &[String]) -> Result<(), String> {
                 "warnings",
             ])?;
             cargo(&["test", "--workspace"])?;
+            table1::run(&["--check"])?;
             cargo(&["bench", "--workspace", "--no-run"])
         }
         Some("bench") => {
@@ -44,10 +77,15 @@ fn run(args: &[String]) -> Result<(), String> {
             cargo(&a)
         }
         Some("tidy") => cargo(&["test", "-p", "xtask", "--test", "tidy"]),
-        Some(other) => Err(format!(
-            "unknown xtask `{other}` (expected one of: ci, bench, tidy)"
-        )),
-        None => Err("usage: cargo xtask <ci|bench|tidy> [ARGS...]".to_owned()),
+        Some("table1") => table1::run(&rest),
+        Some("bench-cases") => bench_cases::run(&rest),
+        Some("goldens") => goldens::run(&rest),
+        Some("help" | "-h" | "--help") => {
+            println!("{USAGE}");
+            Ok(())
+        }
+        Some(other) => Err(format!("unknown xtask `{other}`\n{USAGE}")),
+        None => Err(USAGE.to_owned()),
     }
 }
 

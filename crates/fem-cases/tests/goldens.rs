@@ -51,7 +51,14 @@ fn current(case: &str) -> Value {
 }
 
 /// Compare `now` with `want` (a golden value) at `path`; mismatches are appended to `errors`.
-fn compare(path: &str, want: &Value, now: &Value, unit: &str, tol: &Value, errors: &mut Vec<String>) {
+fn compare(
+    path: &str,
+    want: &Value,
+    now: &Value,
+    unit: &str,
+    tol: &Value,
+    errors: &mut Vec<String>,
+) {
     match want {
         Value::Object(map) => {
             for (k, w) in map {
@@ -90,7 +97,10 @@ fn compare(path: &str, want: &Value, now: &Value, unit: &str, tol: &Value, error
 
 fn check(case: &str) {
     let golden = golden(case);
-    assert_eq!(golden["case"], case, "the golden of {case} names another case");
+    assert_eq!(
+        golden["case"], case,
+        "the golden of {case} names another case"
+    );
     let now = current(case);
     let tol = &golden["tolerance"];
     let units = &golden["units"];
