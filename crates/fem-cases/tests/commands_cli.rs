@@ -2,26 +2,11 @@
 //! cover a sweep exactly once, the merge's refusal of incomplete or mixed shards, and one-line
 //! errors for bad input.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
 
-fn fem2d(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_fem2d"))
-        .args(args)
-        .output()
-        .expect("fem2d runs")
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("fem2d-cmd-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
+use common::{arg, fem2d, scratch};
+use std::path::Path;
+use std::process::Output;
 
 fn ok(out: &Output) -> String {
     let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
@@ -59,7 +44,7 @@ fn compare_writes_markdown_csv_and_json_with_one_row_per_combination() {
         "--threads",
         "1",
         "--out",
-        s(&dir),
+        arg(&dir),
     ]));
     assert!(out.contains("| stvk | pbd | 5 it |"), "{out}");
     let json: serde_json::Value =
@@ -132,26 +117,26 @@ fn shards_cover_a_sweep_once_and_merge_joins_them() {
     for i in 0..4 {
         ok(&fem2d(&[
             "sweep",
-            s(&spec),
+            arg(&spec),
             "--shard",
             &format!("{i}/4"),
             "--threads",
             "1",
             "--out",
-            s(&shards),
+            arg(&shards),
         ]));
     }
     let merged = dir.join("merged");
     // A missing shard is named in one line and nothing is written.
     let partial = [0, 1, 2].map(|i| shards.join(format!("shard-{i}-of-4.json")));
     let mut args = vec!["merge"];
-    args.extend(partial.iter().map(|p| s(p)));
-    args.extend(["--out", s(&merged)]);
+    args.extend(partial.iter().map(|p| arg(p)));
+    args.extend(["--out", arg(&merged)]);
     let err = one_line_error(&fem2d(&args));
     assert!(err.contains("1 of 6 jobs are missing (first: 3)"), "{err}");
     assert!(!merged.join("sweep.json").exists());
 
-    let out = ok(&fem2d(&["merge", s(&shards), "--out", s(&merged)]));
+    let out = ok(&fem2d(&["merge", arg(&shards), "--out", arg(&merged)]));
     assert!(out.contains("Largest stable time step"), "{out}");
     let m: serde_json::Value =
         serde_json::from_slice(&std::fs::read(merged.join("sweep.json")).unwrap()).unwrap();
@@ -176,19 +161,19 @@ fn shards_cover_a_sweep_once_and_merge_joins_them() {
     let other_dir = dir.join("other");
     ok(&fem2d(&[
         "sweep",
-        s(&other),
+        arg(&other),
         "--shard",
         "0/4",
         "--out",
-        s(&other_dir),
+        arg(&other_dir),
     ]));
     let mixed = other_dir.join("shard-0-of-4.json");
     let err = one_line_error(&fem2d(&[
         "merge",
-        s(&shards.join("shard-1-of-4.json")),
-        s(&mixed),
+        arg(&shards.join("shard-1-of-4.json")),
+        arg(&mixed),
         "--out",
-        s(&dir.join("mixed")),
+        arg(&dir.join("mixed")),
     ]));
     assert!(err.contains("different sweep spec"), "{err}");
 }
@@ -201,30 +186,30 @@ fn sweep_rejects_bad_specs_and_shards_in_one_line() {
     let out = dir.join("out");
     one_line_error(&fem2d(&[
         "sweep",
-        s(&spec),
+        arg(&spec),
         "--shard",
         "4/4",
         "--out",
-        s(&out),
+        arg(&out),
     ]));
     one_line_error(&fem2d(&[
         "sweep",
-        s(&spec),
+        arg(&spec),
         "--shard",
         "x",
         "--out",
-        s(&out),
+        arg(&out),
     ]));
     std::fs::write(&spec, "scene = \"case-a\"\n").unwrap();
-    one_line_error(&fem2d(&["sweep", s(&spec), "--out", s(&out)]));
+    one_line_error(&fem2d(&["sweep", arg(&spec), "--out", arg(&out)]));
     std::fs::write(&spec, "scene = \"case-a\"\n[[axis]]\nkeys = [\"mesh.nx\", \"mesh.ny\"]\nvalues = [[10, 2], [3]]\n").unwrap();
-    let err = one_line_error(&fem2d(&["sweep", s(&spec), "--out", s(&out)]));
+    let err = one_line_error(&fem2d(&["sweep", arg(&spec), "--out", arg(&out)]));
     assert!(err.contains("axis.0.values.1"), "{err}");
     one_line_error(&fem2d(&[
         "sweep",
-        s(&dir.join("missing.toml")),
+        arg(&dir.join("missing.toml")),
         "--out",
-        s(&out),
+        arg(&out),
     ]));
     assert!(!out.exists() || std::fs::read_dir(&out).unwrap().next().is_none());
 }

@@ -2,26 +2,9 @@
 //! reader), Gmsh and VTK files and four stage previews; bad input ends with a one-line error and
 //! a non-zero exit code, and leaves no output file behind.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
 
-fn fem2d(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_fem2d"))
-        .args(args)
-        .output()
-        .expect("fem2d runs")
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("fem2d-cli-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
-fn arg(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
+use common::{arg, fem2d, scratch};
 
 #[test]
 fn builtin_body_to_mesh_files_and_previews() {

@@ -3,17 +3,13 @@
 //! run, every built-in case, the energy / solver / thread / `--set` flags, bad input ending with
 //! one `error:` line and no output file, and a run that blows up.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
+
+use common::{arg, fem2d, scratch};
+use std::path::Path;
+use std::process::Output;
 
 use serde_json::Value;
-
-fn fem2d(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_fem2d"))
-        .args(args)
-        .output()
-        .expect("fem2d runs")
-}
 
 /// Runs `fem2d run ARGS --out DIR -q` and checks it succeeded with nothing on stderr.
 fn run_ok(args: &[&str], dir: &Path) -> Output {
@@ -33,18 +29,6 @@ fn run_ok(args: &[&str], dir: &Path) -> Output {
         String::from_utf8_lossy(&out.stderr)
     );
     out
-}
-
-/// A fresh, empty directory for one test.
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("fem2d-run-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
-fn arg(p: &Path) -> &str {
-    p.to_str().unwrap()
 }
 
 fn read(path: &Path) -> String {
