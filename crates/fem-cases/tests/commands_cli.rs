@@ -5,7 +5,6 @@
 mod common;
 
 use common::{arg, fem2d, scratch};
-use std::path::Path;
 use std::process::Output;
 
 fn ok(out: &Output) -> String {
