@@ -78,6 +78,18 @@ pub enum SolverError {
         /// Smallest det F seen in the failed step.
         min_det_f: Real,
     },
+    /// Newton's method did not reach its tolerance (implicit or static solve).
+    #[error(
+        "step {step}: Newton did not converge in {iterations} iterations (residual {residual:.4e} N); lower dt, add load steps or raise max_iterations"
+    )]
+    NotConverged {
+        /// Index of the step (or load increment) that failed.
+        step: u64,
+        /// Iterations taken.
+        iterations: usize,
+        /// Final residual, N.
+        residual: Real,
+    },
     /// A rigid body's pose or velocity became NaN or infinite.
     #[error("step {step}: rigid body of obstacles[{body}] became non-finite")]
     NonFiniteBody {

@@ -61,11 +61,14 @@ pub mod contact;
 pub mod diagnostics;
 mod error;
 pub mod explicit;
+pub mod implicit;
 mod kernel;
 pub mod model;
+pub mod newton;
 pub mod position_based;
 mod report;
 mod state;
+pub mod statics;
 pub mod testing;
 
 use fem_core::energy::Energy;
@@ -75,10 +78,13 @@ pub use bc::{PrescribedMotion, Region};
 pub use contact::{BodyState, ContactParams, Ground, ObstacleMotion};
 pub use error::SolverError;
 pub use explicit::{ExplicitParams, ExplicitScheme, ExplicitStepper};
+pub use implicit::{ImplicitParams, ImplicitStepper};
 pub use model::{Model, TimeStepCheck};
+pub use newton::{NewtonParams, NewtonReport};
 pub use position_based::{Ordering, PbdParams, PbdStepper, XpbdForm, XpbdParams, XpbdStepper};
 pub use report::StepReport;
 pub use state::State;
+pub use statics::{StaticParams, StaticReport, StaticSolver};
 
 /// A time stepper: advances a [`State`] of a [`Model`] by its time step.
 pub trait Stepper {

@@ -30,6 +30,7 @@ pub struct Model<E: Energy> {
     kinematics: Kinematics,
     gravity: Vec2,
     external_forces: Vec<(u32, Vec2)>,
+    tractions: usize,
     ground: Option<Ground>,
     obstacles: Vec<Obstacle>,
     contact: ContactParams,
@@ -79,6 +80,7 @@ impl<E: Energy> Model<E> {
             kinematics: Kinematics::default(),
             gravity: Vec2::zeros(),
             external_forces: Vec::new(),
+            tractions: 0,
             ground: None,
             obstacles: Vec::new(),
             contact: ContactParams::default(),
@@ -159,6 +161,47 @@ impl<E: Energy> Model<E> {
         check_finite_vec(&field, force)?;
         self.external_forces.push((vertex as u32, force));
         Ok(self)
+    }
+
+    /// Add a uniform traction `traction` (force per unit boundary length per unit thickness,
+    /// N/m^2 = Pa) on every boundary edge whose two end vertices lie in `region`, distributed
+    /// consistently: an edge of length `L` gives `traction L / 2` to each end (exact for linear
+    /// elements under a uniform traction). The nodal forces join the external forces. Returns
+    /// the number of edges loaded; fails when the region holds no boundary edge.
+    pub fn add_traction(&mut self, region: &Region, traction: Vec2) -> Result<usize, SolverError> {
+        let field = format!("tractions[{}]", self.tractions);
+        check_finite_vec(&field, traction)?;
+        let inside = region.select(self.mesh.vertices(), &field)?;
+        let mut member = vec![false; self.mesh.n_vertices()];
+        for &v in &inside {
+            member[v] = true;
+        }
+        let mut nodal = vec![Vec2::zeros(); self.mesh.n_vertices()];
+        let x = self.mesh.vertices();
+        let mut edges = 0;
+        for [a, b] in boundary_edges(self.mesh.triangles()) {
+            let (a, b) = (a as usize, b as usize);
+            if member[a] && member[b] {
+                let half = 0.5 * (x[b] - x[a]).norm() * traction;
+                nodal[a] += half;
+                nodal[b] += half;
+                edges += 1;
+            }
+        }
+        if edges == 0 {
+            return Err(SolverError::invalid(
+                field,
+                format!("{} vertices", inside.len()),
+                "the region contains no boundary edge (both end vertices inside)",
+            ));
+        }
+        for (v, f) in nodal.iter().enumerate() {
+            if *f != Vec2::zeros() {
+                self.external_forces.push((v as u32, *f));
+            }
+        }
+        self.tractions += 1;
+        Ok(edges)
     }
 
     /// Set (or, with `None`, remove) the ground half-space.
@@ -339,4 +382,29 @@ impl TimeStepCheck {
             )
         })
     }
+}
+
+/// The edges that belong to exactly one triangle, as `[a, b]` in the triangle's
+/// counter-clockwise order, sorted.
+pub fn boundary_edges(triangles: &[[u32; 3]]) -> Vec<[u32; 2]> {
+    let mut all: Vec<([u32; 2], [u32; 2])> = triangles
+        .iter()
+        .flat_map(|t| {
+            [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])].map(|(a, b)| ([a.min(b), a.max(b)], [a, b]))
+        })
+        .collect();
+    all.sort_unstable();
+    let mut out = Vec::new();
+    let mut i = 0;
+    while i < all.len() {
+        let mut j = i + 1;
+        while j < all.len() && all[j].0 == all[i].0 {
+            j += 1;
+        }
+        if j - i == 1 {
+            out.push(all[i].1);
+        }
+        i = j;
+    }
+    out
 }

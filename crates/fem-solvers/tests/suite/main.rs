@@ -5,4 +5,6 @@ mod common;
 mod contact;
 mod determinism;
 mod explicit;
+mod implicit;
 mod position_based;
+mod statics;

@@ -1,0 +1,508 @@
+//! Newton's method on a potential over the free degrees of freedom, shared by the implicit
+//! Euler stepper and the quasi-static solver.
+//!
+//! The potential is `Phi(x) = w/2 |x - x_hat|_M^2 + Psi(x) - f . x` with `w = 1/h^2` for
+//! implicit Euler (`x_hat` the inertial prediction) and `w = 0` for statics; `Psi` is the elastic
+//! energy and `f` the external load (gravity and nodal forces). Kinematic vertices are held at
+//! the positions the caller put in `x`; their rows and columns are removed from the system.
+//!
+//! Each iteration assembles the gradient and the Hessian `w M + K` with **per-element
+//! PSD-projected** stiffness blocks (so the matrix is positive definite whenever the free
+//! vertices are anchored or `w > 0`), factorises it with faer's sparse Cholesky and takes a
+//! backtracking (Armijo) line search step. The symbolic analysis (fill-reducing ordering,
+//! elimination tree, supernodes) is done once per solver and reused by every factorisation;
+//! buffers are sized once. A trial state whose energy is not finite (an inverted element under an
+//! energy that forbids inversion, such as Neo-Hookean's `log J`) is rejected by the line
+//! search like any state that does not decrease the potential.
+//!
+//! The factorisation runs sequentially (`Par::Seq`) so that results are bit-identical for any
+//! number of rayon threads; assembly is parallel and deterministic (fem-core).
+//!
+//! Why faer rather than a hand-written solver: a supernodal sparse Cholesky with an AMD ordering
+//! is the heart of the cost here, and faer's is well tested and fast.
+
+use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
+use faer::linalg::cholesky::llt::factor::LltRegularization;
+use faer::sparse::linalg::cholesky::{
+    CholeskySymbolicParams, LltRef, SymbolicCholesky, SymmetricOrdering,
+    factorize_symbolic_cholesky,
+};
+use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
+use faer::{Conj, MatMut, Par, Side};
+use fem_core::assembly::{
+    Scratch, Stiffness, Tangent, elastic_energy, populate_forces, populate_stiffness,
+};
+use fem_core::energy::Energy;
+use fem_core::math::{Real, Vec2};
+use fem_core::mesh::Mesh;
+
+use crate::error::SolverError;
+
+/// Convergence and line-search settings of Newton's method.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct NewtonParams {
+    /// Stop when the residual (the 2-norm of the free part of the gradient, N) falls below
+    /// `tolerance` times the force scale (the larger of the first residual and the norm of the
+    /// external load, and 1e-12 N). Default `1e-8`.
+    pub tolerance: Real,
+    /// Most Newton iterations per solve. Default 50.
+    pub max_iterations: usize,
+    /// Most step halvings of the line search. Default 40.
+    pub max_halvings: usize,
+}
+
+impl Default for NewtonParams {
+    fn default() -> Self {
+        NewtonParams {
+            tolerance: 1e-8,
+            max_iterations: 50,
+            max_halvings: 40,
+        }
+    }
+}
+
+impl NewtonParams {
+    pub(crate) fn validate(&self, prefix: &str) -> Result<(), SolverError> {
+        if !(self.tolerance.is_finite() && self.tolerance > 0.0) {
+            return Err(SolverError::invalid(
+                format!("{prefix}.tolerance"),
+                self.tolerance,
+                "must be a finite number > 0",
+            ));
+        }
+        if self.max_iterations == 0 {
+            return Err(SolverError::invalid(
+                format!("{prefix}.max_iterations"),
+                0,
+                "must be >= 1",
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// What one Newton solve did.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct NewtonReport {
+    /// Iterations (linear solves) taken.
+    pub iterations: usize,
+    /// Residual after each iteration, N, starting with the initial one.
+    pub residuals: Vec<Real>,
+    /// The potential after each iteration, J, starting with the initial one.
+    pub potentials: Vec<Real>,
+    /// Whether the residual met the tolerance.
+    pub converged: bool,
+    /// Smallest `det F` at the solution.
+    pub min_det_f: Real,
+    /// Inverted elements at the solution.
+    pub inverted: usize,
+}
+
+/// The reduced Hessian (free degrees of freedom only, lower triangle, compressed columns),
+/// its symbolic factorisation and the buffers of every Newton iteration.
+pub(crate) struct NewtonSolver {
+    /// Free-DOF index of each of the `2 n_vertices` DOFs, or `u32::MAX` when kinematic.
+    free: Vec<u32>,
+    n_free: usize,
+    col_ptr: Vec<usize>,
+    row_idx: Vec<usize>,
+    values: Vec<Real>,
+    /// For each entry of the full stiffness CSR, its slot in `values` (or `u32::MAX`).
+    map: Vec<u32>,
+    /// Slot of each free DOF's diagonal entry in `values`.
+    diag: Vec<usize>,
+    symbolic: SymbolicCholesky<usize>,
+    l_values: Vec<Real>,
+    mem: MemBuffer,
+    stiffness: Stiffness,
+    scratch: Scratch,
+    forces: Vec<Vec2>,
+    gradient: Vec<Real>,
+    direction: Vec<Real>,
+    trial: Vec<Vec2>,
+}
+
+impl std::fmt::Debug for NewtonSolver {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("NewtonSolver")
+            .field("free_dofs", &self.n_free)
+            .field("hessian_entries", &self.values.len())
+            .field("factor_entries", &self.l_values.len())
+            .finish_non_exhaustive()
+    }
+}
+
+/// The inputs of one solve that do not change during it.
+pub(crate) struct Potential<'a, E: Energy> {
+    pub mesh: &'a Mesh,
+    pub energy: &'a E,
+    pub masses: &'a [Real],
+    /// Inertia weight `1/h^2` (0 for statics).
+    pub weight: Real,
+    /// The inertial target `x_hat` (ignored when `weight == 0`).
+    pub target: &'a [Vec2],
+    /// External load per vertex, N (gravity included).
+    pub load: &'a [Vec2],
+}
+
+impl<E: Energy> Potential<'_, E> {
+    /// The potential and the sum of its terms' magnitudes (the scale of its round-off).
+    fn value(&self, x: &[Vec2], scratch: &mut Scratch) -> (Real, Real) {
+        let elastic = elastic_energy(self.mesh, self.energy, x, scratch);
+        let mut rest = 0.0;
+        let mut magnitude = elastic.abs();
+        // The load's work is measured from the rest positions: the same minimiser, without a
+        // large constant that would swamp the line search's comparisons in round-off.
+        for ((i, p), x0) in x.iter().enumerate().zip(self.mesh.vertices()) {
+            if self.weight > 0.0 {
+                let inertia =
+                    0.5 * self.weight * self.masses[i] * (p - self.target[i]).norm_squared();
+                rest += inertia;
+                magnitude += inertia;
+            }
+            let work = self.load[i].dot(&(p - x0));
+            rest -= work;
+            magnitude += work.abs();
+        }
+        (elastic + rest, magnitude)
+    }
+}
+
+impl NewtonSolver {
+    /// Build the reduced pattern for `mesh` with the vertices `kinematic` held (sorted,
+    /// deduplicated), and analyse it symbolically.
+    pub(crate) fn new(mesh: &Mesh, kinematic: &[usize]) -> Result<Self, SolverError> {
+        let stiffness = Stiffness::new(mesh);
+        let n_dof = 2 * mesh.n_vertices();
+        let mut free = vec![0u32; n_dof];
+        let mut n_free = 0usize;
+        let mut k = 0;
+        for v in 0..mesh.n_vertices() {
+            let held = k < kinematic.len() && kinematic[k] == v;
+            if held {
+                k += 1;
+            }
+            for d in 0..2 {
+                free[2 * v + d] = if held {
+                    u32::MAX
+                } else {
+                    n_free += 1;
+                    (n_free - 1) as u32
+                };
+            }
+        }
+        if n_free == 0 {
+            return Err(SolverError::invalid(
+                "kinematics",
+                "every vertex",
+                "an implicit or static solve needs at least one free vertex",
+            ));
+        }
+        // Lower triangle in compressed columns: column j of the reduced matrix is free DOF j,
+        // rows i >= j. The full matrix is symmetric, so the CSR row of DOF r read as a column
+        // gives the column's rows; free indices increase with DOF indices, so rows stay sorted.
+        let m = &stiffness.matrix;
+        let mut col_ptr = Vec::with_capacity(n_free + 1);
+        let mut row_idx = Vec::new();
+        let mut map = vec![u32::MAX; m.values.len()];
+        let mut diag = vec![0usize; n_free];
+        col_ptr.push(0);
+        for r in 0..n_dof {
+            let j = free[r];
+            if j == u32::MAX {
+                continue;
+            }
+            for e in m.row_offsets[r]..m.row_offsets[r + 1] {
+                let i = free[m.col_indices[e]];
+                if i != u32::MAX && i >= j {
+                    if i == j {
+                        diag[j as usize] = row_idx.len();
+                    }
+                    map[e] = row_idx.len() as u32;
+                    row_idx.push(i as usize);
+                }
+            }
+            col_ptr.push(row_idx.len());
+        }
+        let values = vec![0.0; row_idx.len()];
+        let pattern =
+            SymbolicSparseColMatRef::new_checked(n_free, n_free, &col_ptr, None, &row_idx);
+        let symbolic = factorize_symbolic_cholesky(
+            pattern,
+            Side::Lower,
+            SymmetricOrdering::Amd,
+            CholeskySymbolicParams::default(),
+        )
+        .map_err(|e| {
+            SolverError::invalid(
+                "implicit.factorisation",
+                format!("{e:?}"),
+                "symbolic analysis failed",
+            )
+        })?;
+        let req = StackReq::any_of(&[
+            symbolic.factorize_numeric_llt_scratch::<Real>(Par::Seq, Default::default()),
+            symbolic.solve_in_place_scratch::<Real>(1, Par::Seq),
+        ]);
+        let mem = MemBuffer::try_new(req).map_err(|_| {
+            SolverError::invalid(
+                "implicit.factorisation",
+                n_free,
+                "out of memory for the workspace",
+            )
+        })?;
+        Ok(NewtonSolver {
+            l_values: vec![0.0; symbolic.len_val()],
+            symbolic,
+            mem,
+            free,
+            n_free,
+            col_ptr,
+            row_idx,
+            values,
+            map,
+            diag,
+            stiffness,
+            scratch: Scratch::new(),
+            forces: vec![Vec2::zeros(); mesh.n_vertices()],
+            gradient: vec![0.0; n_free],
+            direction: vec![0.0; n_free],
+            trial: vec![Vec2::zeros(); mesh.n_vertices()],
+        })
+    }
+
+    /// Free degrees of freedom.
+    pub(crate) fn n_free(&self) -> usize {
+        self.n_free
+    }
+
+    /// Gradient of the potential over the free DOFs into `self.gradient`; returns its norm.
+    fn gradient<E: Energy>(&mut self, p: &Potential<'_, E>, x: &[Vec2]) -> Real {
+        populate_forces(p.mesh, p.energy, x, &mut self.forces, &mut self.scratch);
+        let mut sq = 0.0;
+        for (v, xv) in x.iter().enumerate() {
+            let mut g = -self.forces[v] - p.load[v];
+            if p.weight > 0.0 {
+                g += p.weight * p.masses[v] * (xv - p.target[v]);
+            }
+            for d in 0..2 {
+                let j = self.free[2 * v + d];
+                if j != u32::MAX {
+                    self.gradient[j as usize] = g[d];
+                    sq += g[d] * g[d];
+                }
+            }
+        }
+        sq.sqrt()
+    }
+
+    /// Assemble `w M + K_projected` over the free DOFs and factorise it. A matrix that is not
+    /// numerically positive definite (possible in statics when the free vertices are not
+    /// anchored) is retried with a growing diagonal shift.
+    fn factorise<E: Energy>(
+        &mut self,
+        p: &Potential<'_, E>,
+        x: &[Vec2],
+    ) -> Result<(), SolverError> {
+        populate_stiffness(
+            p.mesh,
+            p.energy,
+            x,
+            Tangent::Projected,
+            &mut self.stiffness,
+            &mut self.scratch,
+        );
+        self.values.fill(0.0);
+        for (e, &slot) in self.map.iter().enumerate() {
+            if slot != u32::MAX {
+                self.values[slot as usize] += self.stiffness.matrix.values[e];
+            }
+        }
+        if p.weight > 0.0 {
+            for v in 0..p.mesh.n_vertices() {
+                for d in 0..2 {
+                    let j = self.free[2 * v + d];
+                    if j != u32::MAX {
+                        self.values[self.diag[j as usize]] += p.weight * p.masses[v];
+                    }
+                }
+            }
+        }
+        let scale = self
+            .diag
+            .iter()
+            .map(|&s| self.values[s].abs())
+            .fold(0.0, Real::max)
+            .max(Real::MIN_POSITIVE);
+        let mut shift = 0.0;
+        for attempt in 0..8 {
+            if attempt > 0 {
+                let add = if shift == 0.0 {
+                    1e-10 * scale
+                } else {
+                    9.0 * shift
+                };
+                for &s in &self.diag {
+                    self.values[s] += add;
+                }
+                shift += add;
+            }
+            let pattern = SymbolicSparseColMatRef::new_checked(
+                self.n_free,
+                self.n_free,
+                &self.col_ptr,
+                None,
+                &self.row_idx,
+            );
+            let a = SparseColMatRef::new(pattern, &self.values);
+            let ok = self
+                .symbolic
+                .factorize_numeric_llt::<Real>(
+                    &mut self.l_values,
+                    a,
+                    Side::Lower,
+                    LltRegularization {
+                        dynamic_regularization_delta: 0.0,
+                        dynamic_regularization_epsilon: 0.0,
+                    },
+                    Par::Seq,
+                    MemStack::new(&mut self.mem),
+                    Default::default(),
+                )
+                .is_ok();
+            if ok {
+                return Ok(());
+            }
+        }
+        Err(SolverError::invalid(
+            "implicit.hessian",
+            format!("shift {shift:e}"),
+            "is not positive definite even with a diagonal shift (is the body anchored?)",
+        ))
+    }
+
+    /// Solve `H d = -g` with the last factorisation into `self.direction`.
+    fn solve(&mut self) {
+        for (d, g) in self.direction.iter_mut().zip(&self.gradient) {
+            *d = -g;
+        }
+        let llt = LltRef::<'_, usize, Real>::new(&self.symbolic, &self.l_values);
+        let rhs = MatMut::from_column_major_slice_mut(&mut self.direction, self.n_free, 1);
+        llt.solve_in_place_with_conj(Conj::No, rhs, Par::Seq, MemStack::new(&mut self.mem));
+    }
+
+    /// Minimise the potential from `x` (kinematic vertices already placed), in place.
+    pub(crate) fn minimise<E: Energy>(
+        &mut self,
+        p: &Potential<'_, E>,
+        x: &mut [Vec2],
+        params: &NewtonParams,
+    ) -> Result<NewtonReport, SolverError> {
+        let mut report = NewtonReport::default();
+        let (mut phi, mut magnitude) = p.value(x, &mut self.scratch);
+        if !phi.is_finite() {
+            return Err(SolverError::invalid(
+                "implicit.initial_guess",
+                phi,
+                "the potential is not finite at the starting positions",
+            ));
+        }
+        let mut residual = self.gradient(p, x);
+        let load: Real = p.load.iter().map(|f| f.norm_squared()).sum::<Real>().sqrt();
+        let target = params.tolerance * residual.max(load).max(1e-12);
+        report.residuals.push(residual);
+        report.potentials.push(phi);
+        // Positions are absolute coordinates, so forces carry a round-off floor of about
+        // eps E (size / element size): a Newton step below `1e-13` of the body's size is at that
+        // floor and counts as converged even when the residual tolerance is tighter. The
+        // potential has a floor too (eps times its terms, and `psi`'s terms are of the order of
+        // the modulus, not of `psi`): where a trial's change of potential is below it, the line
+        // search accepts the trial if it lowers the residual instead.
+        let modulus = p.energy.dpk1(&fem_core::math::Mat2::identity())[(0, 0)].abs();
+        let psi_scale = modulus * p.mesh.area();
+        let size = body_size(p.mesh.vertices());
+        let mut at_floor = false;
+        while residual > target && !at_floor && report.iterations < params.max_iterations {
+            self.factorise(p, x)?;
+            self.solve();
+            let step = self.direction.iter().fold(0.0, |m: Real, d| m.max(d.abs()));
+            if step <= 1e-13 * size {
+                at_floor = true;
+                break;
+            }
+            let slope: Real = self
+                .direction
+                .iter()
+                .zip(&self.gradient)
+                .map(|(d, g)| d * g)
+                .sum();
+            let mut alpha = 1.0;
+            let mut accepted = false;
+            for _ in 0..=params.max_halvings {
+                self.trial.copy_from_slice(x);
+                for (v, t) in self.trial.iter_mut().enumerate() {
+                    for d in 0..2 {
+                        let j = self.free[2 * v + d];
+                        if j != u32::MAX {
+                            t[d] += alpha * self.direction[j as usize];
+                        }
+                    }
+                }
+                let (trial_phi, trial_magnitude) = p.value(&self.trial, &mut self.scratch);
+                if !trial_phi.is_finite() {
+                    alpha *= 0.5;
+                    continue;
+                }
+                let armijo = trial_phi <= phi + 1e-4 * alpha * slope;
+                let in_round_off =
+                    (trial_phi - phi).abs() <= 1e-12 * (magnitude + trial_magnitude + psi_scale);
+                let lowers_residual = in_round_off && {
+                    let trial = std::mem::take(&mut self.trial);
+                    let r = self.gradient(p, &trial);
+                    self.trial = trial;
+                    r < residual
+                };
+                if armijo || lowers_residual {
+                    phi = trial_phi;
+                    magnitude = trial_magnitude;
+                    accepted = true;
+                    break;
+                }
+                alpha *= 0.5;
+            }
+            report.iterations += 1;
+            if !accepted {
+                // No decrease along the Newton direction within round-off: the iterate is as
+                // good as this precision allows.
+                break;
+            }
+            x.copy_from_slice(&self.trial);
+            residual = self.gradient(p, x);
+            report.residuals.push(residual);
+            report.potentials.push(phi);
+        }
+        report.converged = residual <= target || at_floor;
+        let (mut min_det, mut inverted) = (Real::INFINITY, 0);
+        for (t, el) in p.mesh.elements().iter().enumerate() {
+            let j = el.deformation_gradient(p.mesh.gather(t, x)).determinant();
+            min_det = min_det.min(j);
+            inverted += usize::from(j <= 0.0);
+        }
+        report.min_det_f = min_det;
+        report.inverted = inverted;
+        Ok(report)
+    }
+}
+
+/// The diagonal of the bounding box of `x`, m.
+fn body_size(x: &[Vec2]) -> Real {
+    let (mut lo, mut hi) = (
+        Vec2::repeat(Real::INFINITY),
+        Vec2::repeat(Real::NEG_INFINITY),
+    );
+    for p in x {
+        lo = lo.inf(p);
+        hi = hi.sup(p);
+    }
+    (hi - lo).norm()
+}
