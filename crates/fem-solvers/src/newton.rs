@@ -28,6 +28,8 @@ use faer::sparse::linalg::cholesky::{
     factorize_symbolic_cholesky,
 };
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
+use std::time::Instant;
+
 use faer::{Conj, MatMut, Par, Side};
 use fem_core::assembly::{
     Scratch, Stiffness, Tangent, elastic_energy, populate_forces, populate_stiffness,
@@ -96,6 +98,14 @@ pub struct NewtonReport {
     pub min_det_f: Real,
     /// Inverted elements at the solution.
     pub inverted: usize,
+    /// Wall time of gradient and Hessian assembly (forces, stiffness, reduction), s.
+    pub assembly_seconds: Real,
+    /// Wall time of the numeric Cholesky factorisations, s.
+    pub factorisation_seconds: Real,
+    /// Wall time of the triangular solves, s.
+    pub solve_seconds: Real,
+    /// Wall time of the line searches (potential evaluations), s.
+    pub line_search_seconds: Real,
 }
 
 /// The reduced Hessian (free degrees of freedom only, lower triangle, compressed columns),
@@ -303,7 +313,9 @@ impl NewtonSolver {
         &mut self,
         p: &Potential<'_, E>,
         x: &[Vec2],
+        report: &mut NewtonReport,
     ) -> Result<(), SolverError> {
+        let start = Instant::now();
         populate_stiffness(
             p.mesh,
             p.energy,
@@ -334,6 +346,8 @@ impl NewtonSolver {
             .map(|&s| self.values[s].abs())
             .fold(0.0, Real::max)
             .max(Real::MIN_POSITIVE);
+        report.assembly_seconds += start.elapsed().as_secs_f64();
+        let start = Instant::now();
         let mut shift = 0.0;
         for attempt in 0..8 {
             if attempt > 0 {
@@ -371,6 +385,7 @@ impl NewtonSolver {
                 )
                 .is_ok();
             if ok {
+                report.factorisation_seconds += start.elapsed().as_secs_f64();
                 return Ok(());
             }
         }
@@ -423,8 +438,11 @@ impl NewtonSolver {
         let size = body_size(p.mesh.vertices());
         let mut at_floor = false;
         while residual > target && !at_floor && report.iterations < params.max_iterations {
-            self.factorise(p, x)?;
+            self.factorise(p, x, &mut report)?;
+            let start = Instant::now();
             self.solve();
+            report.solve_seconds += start.elapsed().as_secs_f64();
+            let start = Instant::now();
             let step = self.direction.iter().fold(0.0, |m: Real, d| m.max(d.abs()));
             if step <= 1e-13 * size {
                 at_floor = true;
@@ -470,6 +488,7 @@ impl NewtonSolver {
                 }
                 alpha *= 0.5;
             }
+            report.line_search_seconds += start.elapsed().as_secs_f64();
             report.iterations += 1;
             if !accepted {
                 // No decrease along the Newton direction within round-off: the iterate is as
@@ -477,7 +496,9 @@ impl NewtonSolver {
                 break;
             }
             x.copy_from_slice(&self.trial);
+            let start = Instant::now();
             residual = self.gradient(p, x);
+            report.assembly_seconds += start.elapsed().as_secs_f64();
             report.residuals.push(residual);
             report.potentials.push(phi);
         }
