@@ -11,6 +11,8 @@
 //!   (1 mm tolerance) and is part of CI.
 //! - `cargo xtask bench-cases [--quick] [--out DIR]`: every case x energy x solver on one
 //!   thread, best of 3, into `docs/bench-cases.md` and `docs/bench-cases.json`.
+//! - `cargo xtask stability`: the stability and accuracy maps of every energy x solver
+//!   (`docs/stability.md`, with SVG plots in `docs/figures/`).
 //! - `cargo xtask goldens`: regenerate `fixtures/goldens/case-{a,b,c,d}.json`, checked by
 //!   `crates/fem-cases/tests/goldens.rs`.
 //!
@@ -19,6 +21,8 @@
 
 mod bench_cases;
 mod goldens;
+mod stability;
+mod svg;
 mod table1;
 mod util;
 
@@ -37,6 +41,9 @@ tasks:
                        cases A-D x 5 energies x 3 solvers on one thread, best of 3, into
                        docs/bench-cases.{md,json}; --quick: one repeat, a tenth of the steps,
                        printed (written only with --out)
+  stability            the stability map (largest stable dt against E) and the accuracy map
+                       (error against cost) of every energy x solver, into docs/stability.md
+                       and docs/figures/{stability,accuracy}-map.svg
   goldens              regenerate fixtures/goldens/case-{a,b,c,d}.json (checked by
                        cargo test -p fem-cases --test goldens)";
 
@@ -78,6 +85,7 @@ fn run(args: &[String]) -> Result<(), String> {
         }
         Some("tidy") => cargo(&["test", "-p", "xtask", "--test", "tidy"]),
         Some("table1") => table1::run(&rest),
+        Some("stability") => stability::run(&rest),
         Some("bench-cases") => bench_cases::run(&rest),
         Some("goldens") => goldens::run(&rest),
         Some("help" | "-h" | "--help") => {

@@ -23,7 +23,8 @@ pub fn cargo_program() -> String {
 
 /// The release `fem2d` binary, built once per xtask invocation.
 pub struct Fem2d {
-    exe: PathBuf,
+    /// The release executable.
+    pub exe: PathBuf,
 }
 
 /// What a `fem2d` invocation produced.

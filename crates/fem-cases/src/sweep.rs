@@ -30,7 +30,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::cases::load_case_or_file;
 use crate::error::CaseError;
-use crate::run::{RunOptions, Summary, run_scene, write_atomic};
+use crate::run::{RunOptions, RunResult, Summary, run_scene, write_atomic};
 
 /// A sweep spec as written.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -47,6 +47,20 @@ pub struct SweepSpec {
     /// The axes.
     #[serde(default, rename = "axis")]
     pub axes: Vec<Axis>,
+    /// A reference run every job is compared with (accuracy maps).
+    pub reference: Option<Reference>,
+}
+
+/// The reference of an accuracy sweep: each job's run with these overrides applied last (for
+/// example a fine-dt implicit run: `set = ["solver.kind=\"implicit\"", "solver.dt=1e-5"]`).
+/// Jobs whose parameters give the same reference share one reference run (per shard).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Reference {
+    /// Overrides applied after the job's own.
+    pub set: Vec<String>,
+    /// The probe compared (default: every probe).
+    pub probe: Option<String>,
 }
 
 /// One axis: a key and its values, or linked keys and a tuple of values per point.
@@ -92,6 +106,10 @@ pub struct JobResult {
     pub summary: Option<Summary>,
     /// Why the job could not run (bad parameter combination), if so.
     pub error: Option<String>,
+    /// With a reference: the RMS over the job's frames of the distance between the job's probe
+    /// displacements and the reference's (linearly interpolated at the job's frame times), m.
+    #[serde(default)]
+    pub reference_error: Option<f64>,
 }
 
 /// A shard file.
@@ -235,38 +253,90 @@ impl Sweep {
             .collect()
     }
 
-    /// Run one job.
-    pub fn run_job(&self, job: &Job, threads: Option<usize>) -> JobResult {
-        let mut overrides = self.spec.set.clone();
-        overrides.extend(job.params.iter().map(|(k, v)| format!("{k}={v}")));
-        let scene_arg = if crate::cases::case_text(&self.spec.scene).is_some() {
+    fn scene_arg(&self) -> String {
+        if crate::cases::case_text(&self.spec.scene).is_some() {
             self.spec.scene.clone()
         } else {
             self.base_dir.join(&self.spec.scene).display().to_string()
-        };
-        let outcome = load_case_or_file(&scene_arg, &overrides).and_then(|mut scene| {
+        }
+    }
+
+    fn load(&self, overrides: &[String]) -> Result<crate::scene::LoadedScene, CaseError> {
+        load_case_or_file(&self.scene_arg(), overrides).map(|mut scene| {
             if let Some(d) = self.spec.duration {
                 scene.scene.solver.steps = (d / scene.scene.solver.dt).ceil().max(1.0) as u64;
             }
             scene.scene.output.frames = false;
-            run_scene(
-                &scene,
-                &RunOptions {
-                    threads,
-                    ..RunOptions::default()
-                },
-            )
-        });
-        match outcome {
-            Ok(r) => JobResult {
-                job: job.clone(),
-                summary: Some(r.summary),
-                error: None,
+            scene
+        })
+    }
+
+    fn run_with(
+        &self,
+        overrides: &[String],
+        threads: Option<usize>,
+    ) -> Result<RunResult, CaseError> {
+        let scene = self.load(overrides)?;
+        run_scene(
+            &scene,
+            &RunOptions {
+                threads,
+                ..RunOptions::default()
             },
+        )
+    }
+
+    /// Run one job (without a reference comparison; see [`Sweep::run_shard`]).
+    pub fn run_job(&self, job: &Job, threads: Option<usize>) -> JobResult {
+        self.run_job_against(job, threads, &mut ReferenceCache::default())
+    }
+
+    fn run_job_against(
+        &self,
+        job: &Job,
+        threads: Option<usize>,
+        cache: &mut ReferenceCache,
+    ) -> JobResult {
+        let mut overrides = self.spec.set.clone();
+        overrides.extend(job.params.iter().map(|(k, v)| format!("{k}={v}")));
+        match self.run_with(&overrides, threads) {
+            Ok(r) => {
+                let reference_error = match &self.spec.reference {
+                    Some(reference) if !r.summary.blew_up => {
+                        let mut with_reference = overrides.clone();
+                        with_reference.extend(reference.set.iter().cloned());
+                        // Jobs whose reference scene is the same (e.g. differing only in the
+                        // solver and dt the reference overrides) share one reference run.
+                        let key = self
+                            .load(&with_reference)
+                            .ok()
+                            .and_then(|scene| toml::to_string(&scene.scene).ok())
+                            .unwrap_or_else(|| with_reference.join("\u{1f}"));
+                        let entry = cache
+                            .runs
+                            .entry(key)
+                            .or_insert_with(|| self.run_with(&with_reference, threads).ok());
+                        entry
+                            .as_ref()
+                            .filter(|reference_run| !reference_run.summary.blew_up)
+                            .and_then(|reference_run| {
+                                compare_to_reference(&r, reference_run, reference.probe.as_deref())
+                            })
+                    }
+                    _ => None,
+                };
+                JobResult {
+                    job: job.clone(),
+                    summary: Some(r.summary),
+                    error: None,
+                    reference_error,
+                }
+            }
             Err(e) => JobResult {
                 job: job.clone(),
                 summary: None,
                 error: Some(e.to_string()),
+                reference_error: None,
             },
         }
     }
@@ -286,11 +356,12 @@ impl Sweep {
         }
         let jobs = self.jobs();
         let total_jobs = jobs.len();
+        let mut cache = ReferenceCache::default();
         let results = jobs
             .into_iter()
             .filter(|j| j.index % of == shard)
             .map(|j| {
-                let r = self.run_job(&j, threads);
+                let r = self.run_job_against(&j, threads, &mut cache);
                 progress(&r);
                 r
             })
@@ -303,6 +374,52 @@ impl Sweep {
             results,
         })
     }
+}
+
+/// Wall seconds of stepping per simulated second (`None` for runs that simulated no time).
+pub fn cost_per_second(s: &Summary) -> Option<f64> {
+    (s.simulated_seconds > 0.0).then(|| s.step_seconds / s.simulated_seconds)
+}
+
+/// Reference runs already made in this shard, by their override list.
+#[derive(Default)]
+struct ReferenceCache {
+    runs: BTreeMap<String, Option<RunResult>>,
+}
+
+/// RMS over `run`'s frames of the distance between its probe displacements and `reference`'s,
+/// the reference interpolated linearly at the run's frame times (frames outside the reference's
+/// time span are skipped). `None` when no frame or probe can be compared.
+pub fn compare_to_reference(
+    run: &RunResult,
+    reference: &RunResult,
+    probe: Option<&str>,
+) -> Option<f64> {
+    let times: Vec<f64> = reference.frame_times.iter().map(|f| f.1).collect();
+    let (mut sum, mut count) = (0.0, 0usize);
+    for (p, series) in run.probes.iter().zip(&run.probe_series) {
+        if probe.is_some_and(|name| name != p.name) {
+            continue;
+        }
+        let Some(reference_series) = reference.probe(&p.name) else {
+            continue;
+        };
+        for (&(_, t), u) in run.frame_times.iter().zip(series) {
+            let k = times.partition_point(|&s| s < t - 1e-12);
+            let r = if k < times.len() && (times[k] - t).abs() <= 1e-12 {
+                reference_series[k]
+            } else if k == 0 || k >= times.len() {
+                continue;
+            } else {
+                let w = (t - times[k - 1]) / (times[k] - times[k - 1]);
+                let (a, b) = (reference_series[k - 1], reference_series[k]);
+                [a[0] + w * (b[0] - a[0]), a[1] + w * (b[1] - a[1])]
+            };
+            sum += (u[0] - r[0]).powi(2) + (u[1] - r[1]).powi(2);
+            count += 1;
+        }
+    }
+    (count > 0).then(|| (sum / count as f64).sqrt())
 }
 
 /// Parse `i/n`.
@@ -442,7 +559,7 @@ impl Merged {
         for p in &probes {
             let _ = write!(out, ",{p}.ux,{p}.uy");
         }
-        out.push_str(",error\n");
+        out.push_str(",reference_error,cost_per_simulated_second,error\n");
         for r in &self.results {
             let _ = write!(out, "{}", r.job.index);
             for (_, v) in &r.job.params {
@@ -476,12 +593,16 @@ impl Merged {
                     }
                     let _ = writeln!(
                         out,
-                        ",\"{}\"",
+                        ",{},{},\"{}\"",
+                        r.reference_error.map(|e| e.to_string()).unwrap_or_default(),
+                        cost_per_second(s)
+                            .map(|c| c.to_string())
+                            .unwrap_or_default(),
                         s.blow_up_message.as_deref().unwrap_or("").replace('"', "'")
                     );
                 }
                 None => {
-                    out.push_str(&",".repeat(8 + 2 * probes.len()));
+                    out.push_str(&",".repeat(10 + 2 * probes.len()));
                     let _ = writeln!(
                         out,
                         ",\"{}\"",
@@ -573,6 +694,39 @@ impl Merged {
                         r.error.as_deref().unwrap_or("")
                     );
                 }
+            }
+        }
+        if self.spec.reference.is_some() {
+            out.push_str("\nAccuracy against the reference (");
+            out.push_str(
+                &self
+                    .spec
+                    .reference
+                    .as_ref()
+                    .map(|r| r.set.join(", "))
+                    .unwrap_or_default(),
+            );
+            out.push_str("): RMS probe distance over the run's frames, and the cost of one simulated second.\n\n|");
+            for k in &keys {
+                let _ = write!(out, " {k} |");
+            }
+            out.push_str(" error (m) | wall s per simulated s |\n|");
+            out.push_str(&"---|".repeat(keys.len() + 2));
+            out.push('\n');
+            for r in &self.results {
+                out.push('|');
+                for (_, v) in &r.job.params {
+                    let _ = write!(out, " {} |", shown(v));
+                }
+                let e = r
+                    .reference_error
+                    .map_or("-".to_owned(), |e| format!("{e:.3e}"));
+                let c = r
+                    .summary
+                    .as_ref()
+                    .and_then(cost_per_second)
+                    .map_or("-".to_owned(), |c| format!("{c:.3e}"));
+                let _ = writeln!(out, " {e} | {c} |");
             }
         }
         if let Some(rows) = self.stability() {

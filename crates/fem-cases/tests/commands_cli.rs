@@ -212,3 +212,55 @@ fn sweep_rejects_bad_specs_and_shards_in_one_line() {
     ]));
     assert!(!out.exists() || std::fs::read_dir(&out).unwrap().next().is_none());
 }
+
+#[test]
+fn a_reference_gives_each_job_its_error_and_cost() {
+    let dir = scratch("reference");
+    let spec = dir.join("spec.toml");
+    std::fs::write(
+        &spec,
+        r#"
+scene = "case-a"
+duration = 0.2
+
+[reference]
+set = ["solver.dt=1e-4"]
+probe = "tip"
+
+[[axis]]
+key = "solver.dt"
+values = [2e-3, 1e-3, 5e-4]
+"#,
+    )
+    .unwrap();
+    let out = dir.join("out");
+    ok(&fem2d(&[
+        "sweep",
+        arg(&spec),
+        "--threads",
+        "1",
+        "--out",
+        arg(&out),
+    ]));
+    let md = ok(&fem2d(&["merge", arg(&out), "--out", arg(&out)]));
+    assert!(md.contains("Accuracy against the reference"), "{md}");
+    let m: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("sweep.json")).unwrap()).unwrap();
+    let errors: Vec<f64> = m["results"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| r["reference_error"].as_f64().unwrap())
+        .collect();
+    // Symplectic Euler is first order: the error against the fine-dt reference shrinks as dt
+    // does.
+    assert!(errors[0] > errors[1] && errors[1] > errors[2], "{errors:?}");
+    assert!(errors[2] > 0.0);
+    let csv = std::fs::read_to_string(out.join("sweep.csv")).unwrap();
+    assert!(
+        csv.lines()
+            .next()
+            .unwrap()
+            .contains(",reference_error,cost_per_simulated_second,")
+    );
+}
