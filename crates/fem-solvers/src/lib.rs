@@ -2,16 +2,18 @@
 //!
 //! Pick this crate to advance a [`fem_core`] mesh in time with the paper's three frameworks
 //! (Sections 3.1-3.2): explicit FEM (Algorithm I), energy-based PBD (Eqs. 4-6) and energy-based
-//! XPBD (Algorithm II, Eq. 7), with pinned and prescribed vertices, gravity, nodal loads, a
-//! ground and rigid obstacles.
+//! XPBD (Algorithm II, Eq. 7), with pinned and prescribed vertices, gravity, nodal loads and
+//! boundary tractions, a ground and rigid obstacles; and beyond the paper, implicit Euler
+//! ([`ImplicitStepper`]) and quasi-static equilibrium ([`StaticSolver`]), both by Newton with a
+//! sparse Cholesky factorisation (faer).
 //!
 //! The pieces, kept apart:
 //! - a [`Model`] (mesh, energy, lumped masses, boundary conditions, loads, obstacles): fixed
 //!   during a run;
 //! - a [`State`] (positions, velocities, rigid-body poses, time): what steps change;
 //! - steppers that advance a state by `dt` and return a [`StepReport`] (min det F, inverted
-//!   elements, iterations, constraint residual, contacts): [`ExplicitStepper`],
-//!   [`PbdStepper`], [`XpbdStepper`], all behind the [`Stepper`] trait.
+//!   elements, iterations, constraint or Newton residual, contacts): [`ExplicitStepper`],
+//!   [`PbdStepper`], [`XpbdStepper`], [`ImplicitStepper`], all behind the [`Stepper`] trait.
 //!
 //! Also: the explicit stability guard ([`Model::check_time_step`]: smallest element height over
 //! the dilatational wave speed), blow-up detection (a step never writes non-finite values into

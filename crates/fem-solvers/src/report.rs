@@ -10,11 +10,13 @@ pub struct StepReport {
     pub min_det_f: Real,
     /// Elements with `det F <= 0` in that pass.
     pub inverted: usize,
-    /// Constraint iterations performed (summed over substeps; 0 for explicit).
+    /// Constraint iterations performed (summed over substeps; 0 for explicit), or Newton
+    /// iterations (implicit).
     pub iterations: usize,
     /// Constraint residual of the last iteration (0 for explicit): PBD `sqrt(sum C^2)`, XPBD
     /// `sqrt(sum (C + alpha~ lambda)^2)`, both over the constraints evaluated in that
-    /// iteration, in the constraint's units.
+    /// iteration, in the constraint's units; implicit: the Newton residual (gradient norm over
+    /// the free degrees of freedom, N).
     pub residual: Real,
     /// Vertex-obstacle contact pairs detected (in the last pass).
     pub contacts: usize,
