@@ -16,6 +16,9 @@ use crate::util::{Fem2d, TempDir, read_json, root, write_atomic};
 
 const SHARDS: usize = 2;
 
+/// `(energy, solver)`.
+type Pair = (String, String);
+
 /// Run a sweep spec in `SHARDS` parallel processes and merge; the merged JSON.
 fn sweep(fem2d: &Fem2d, spec: &str, dir: &TempDir) -> Result<Value, String> {
     let mut children = Vec::new();
@@ -72,7 +75,7 @@ pub fn run(_args: &[&str]) -> Result<(), String> {
     let minutes = start.elapsed().as_secs_f64() / 60.0;
 
     // Stability: (energy, solver) -> E -> [(dt, stable)].
-    let mut grid: BTreeMap<(String, String), BTreeMap<u64, Vec<(f64, bool)>>> = BTreeMap::new();
+    let mut grid: BTreeMap<Pair, BTreeMap<u64, Vec<(f64, bool)>>> = BTreeMap::new();
     let results = stab["results"].as_array().ok_or("sweep.json: no results")?;
     for r in results {
         let (Some(e), Some(s), Some(m), Some(dt)) = (
@@ -150,7 +153,7 @@ pub fn run(_args: &[&str]) -> Result<(), String> {
     );
 
     // Accuracy: (energy, solver) -> [(dt, cost, error)].
-    let mut acc_grid: BTreeMap<(String, String), Vec<(f64, f64, f64)>> = BTreeMap::new();
+    let mut acc_grid: BTreeMap<Pair, Vec<(f64, f64, f64)>> = BTreeMap::new();
     for r in acc["results"]
         .as_array()
         .ok_or("accuracy sweep.json: no results")?

@@ -1,5 +1,6 @@
 //! From a validated scene to the pieces of a run: the mesh, the model (masses, boundary
-//! conditions, gravity, ground, obstacles), the probes' vertices and the stepper.
+//! conditions, gravity, tractions, ground, obstacles), the probes' vertices and the stepper (or,
+//! for `static`, the quasi-static solver's parameters).
 
 use fem_core::energy::{AnyEnergy, Energy};
 use fem_core::math::{Real, Vec2};
@@ -12,9 +13,10 @@ use fem_mesh::pipeline::{PipelineParams, mesh_surface};
 use fem_mesh::structured::{Diagonal, RectangleParams, rectangle};
 use fem_mesh::triangulate::TriangulateParams;
 use fem_solvers::{
-    ContactParams, ExplicitParams, ExplicitScheme, ExplicitStepper, Ground, Model, ObstacleMotion,
-    Ordering, PbdParams, PbdStepper, PrescribedMotion, Region, SolverError, State, StepReport,
-    Stepper, XpbdForm, XpbdParams, XpbdStepper,
+    ContactParams, ExplicitParams, ExplicitScheme, ExplicitStepper, Ground, ImplicitParams,
+    ImplicitStepper, Model, NewtonParams, ObstacleMotion, Ordering, PbdParams, PbdStepper,
+    PrescribedMotion, Region, SolverError, State, StaticParams, StepReport, Stepper, XpbdForm,
+    XpbdParams, XpbdStepper,
 };
 
 use crate::error::CaseError;
@@ -175,6 +177,18 @@ pub fn build_model<E: Energy>(
     mesh: Mesh,
     energy: E,
 ) -> Result<Model<E>, CaseError> {
+    let mut model = build_unloaded_model(scene, mesh, energy)?;
+    add_loads(scene, &mut model)?;
+    Ok(model)
+}
+
+/// The model of the scene without its loads: no gravity and no traction (masses, boundary
+/// conditions, ground, obstacles and contact parameters as in [`build_model`]).
+pub fn build_unloaded_model<E: Energy>(
+    scene: &LoadedScene,
+    mesh: Mesh,
+    energy: E,
+) -> Result<Model<E>, CaseError> {
     let s = &scene.scene;
     let err = solver_err(scene);
     let mut model = match (s.material.total_mass, s.material.density) {
@@ -183,7 +197,7 @@ pub fn build_model<E: Energy>(
         (None, None) => unreachable!("validated: one of total_mass and density is given"),
     }
     .map_err(&err)?;
-    model.set_gravity(v2(s.gravity)).map_err(&err)?;
+    model.set_gravity(Vec2::zeros()).map_err(&err)?;
     for (i, r) in s.pinned.iter().enumerate() {
         let region = Region::in_box(v2(r.min), v2(r.max));
         if region
@@ -263,6 +277,82 @@ pub fn build_model<E: Energy>(
     Ok(model)
 }
 
+/// Add the scene's loads to `model`: gravity and the `[[traction]]` entries (consistent nodal
+/// forces on the boundary edges whose two end vertices lie in each box).
+pub fn add_loads<E: Energy>(scene: &LoadedScene, model: &mut Model<E>) -> Result<(), CaseError> {
+    let s = &scene.scene;
+    let err = solver_err(scene);
+    model.set_gravity(v2(s.gravity)).map_err(&err)?;
+    for (i, t) in s.traction.iter().enumerate() {
+        let region = Region::in_box(v2(t.min), v2(t.max));
+        match model.add_traction(&region, v2(t.traction)) {
+            Ok(_) => {}
+            Err(SolverError::InvalidParameter { value, .. }) => {
+                // The only rule the validated scene can break: the box holds no boundary edge.
+                return Err(scene.error(
+                    &format!("traction.{i}"),
+                    format!("min {:?} max {:?} ({value})", t.min, t.max),
+                    "contains no boundary edge (an edge of the mesh boundary with both end vertices in the box)",
+                ));
+            }
+            Err(e) => return Err(err(e)),
+        }
+    }
+    Ok(())
+}
+
+/// The displacement each prescribed vertex has at the end of the run (`t = dt * steps`): its
+/// schedule's velocity times the part of `[0, dt * steps]` inside its window, the later of two
+/// regions holding a vertex winning (as in the model). Zero for every other vertex. The static
+/// solver moves prescribed vertices to this displacement, in proportion to the load factor.
+pub fn prescribed_displacements(
+    scene: &LoadedScene,
+    rest: &[Vec2],
+) -> Result<Vec<Option<Vec2>>, CaseError> {
+    let s = &scene.scene;
+    let err = solver_err(scene);
+    let end_of_run = s.solver.dt * s.solver.steps as f64;
+    let mut out = vec![None; rest.len()];
+    for (i, p) in s.prescribed.iter().enumerate() {
+        let motion = PrescribedMotion {
+            region: Region::in_box(v2(p.min), v2(p.max)),
+            velocity: v2(p.velocity),
+            start: p.start,
+            end: p.end.unwrap_or(end_of_run.max(p.start)),
+        };
+        let u = motion.mean_velocity(0.0, end_of_run) * end_of_run;
+        for v in motion
+            .region
+            .select(rest, &format!("prescribed.{i}"))
+            .map_err(&err)?
+        {
+            out[v] = Some(u);
+        }
+    }
+    Ok(out)
+}
+
+/// The Newton settings of the scene (`solver.tolerance`, `solver.max_iterations`).
+pub fn newton_params(scene: &LoadedScene) -> NewtonParams {
+    let v = &scene.scene.solver;
+    NewtonParams {
+        tolerance: v.tolerance,
+        max_iterations: v.max_iterations,
+        ..NewtonParams::default()
+    }
+}
+
+/// The quasi-static solver's parameters for one load increment: the run loop steps the load
+/// factor itself (one increment per call, halving an increment that fails), so the solver gets
+/// one load step and no bisection of its own.
+pub fn static_increment_params(scene: &LoadedScene) -> StaticParams {
+    StaticParams {
+        load_steps: 1,
+        max_bisections: 0,
+        newton: newton_params(scene),
+    }
+}
+
 /// A probe resolved to a vertex.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Probe {
@@ -314,6 +404,8 @@ pub enum AnyStepper {
     Pbd(PbdStepper),
     /// XPBD.
     Xpbd(XpbdStepper),
+    /// Implicit Euler (boxed: its Newton workspace makes it the largest variant by far).
+    Implicit(Box<ImplicitStepper>),
 }
 
 impl AnyStepper {
@@ -332,6 +424,7 @@ impl Stepper for AnyStepper {
             AnyStepper::Explicit(s) => s.dt(),
             AnyStepper::Pbd(s) => s.dt(),
             AnyStepper::Xpbd(s) => s.dt(),
+            AnyStepper::Implicit(s) => s.dt(),
         }
     }
 
@@ -344,11 +437,13 @@ impl Stepper for AnyStepper {
             AnyStepper::Explicit(s) => s.step(model, state),
             AnyStepper::Pbd(s) => s.step(model, state),
             AnyStepper::Xpbd(s) => s.step(model, state),
+            AnyStepper::Implicit(s) => s.step(model, state),
         }
     }
 }
 
-/// The scene's stepper for `model`.
+/// The scene's stepper for `model`. A `static` scene has no stepper (the run loop drives the
+/// quasi-static solver, see [`static_increment_params`]): asking for one is an error.
 pub fn build_stepper<E: Energy>(
     scene: &LoadedScene,
     model: &Model<E>,
@@ -411,11 +506,22 @@ pub fn build_stepper<E: Energy>(
             )
             .map_err(&err)?,
         ),
-        SolverKind::Implicit | SolverKind::Static => {
+        SolverKind::Implicit => AnyStepper::Implicit(Box::new(
+            ImplicitStepper::new(
+                model,
+                ImplicitParams {
+                    dt: v.dt,
+                    damping: v.damping,
+                    newton: newton_params(scene),
+                },
+            )
+            .map_err(&err)?,
+        )),
+        SolverKind::Static => {
             return Err(scene.error(
                 "solver.kind",
                 v.kind,
-                "is not available in this version (available: explicit, pbd, xpbd)",
+                "has no time stepper: a static scene is run by `run_scene`, which drives the quasi-static solver",
             ));
         }
     })

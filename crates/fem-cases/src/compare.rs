@@ -117,7 +117,13 @@ pub fn compare(
                 let row = match outcome {
                     Ok(result) => {
                         let s = &result.summary;
-                        header.get_or_insert((s.triangles, s.dt, s.steps));
+                        // dt and steps as the scene gives them (a static row reports load
+                        // increments as its steps).
+                        header.get_or_insert((
+                            s.triangles,
+                            base.scene.solver.dt,
+                            base.scene.solver.steps,
+                        ));
                         let probes = result
                             .probes
                             .iter()
@@ -127,8 +133,11 @@ pub fn compare(
                                 name: p.name.clone(),
                                 final_displacement: ps.final_displacement,
                                 min_uy: ps.uy_range[0],
+                                // A static run's frames are load increments, not times:
+                                // no curve to compare with explicit's.
                                 rms_vs_explicit: explicit
                                     .as_ref()
+                                    .filter(|_| solver != SolverKind::Static)
                                     .and_then(|e| e.probe(&p.name))
                                     .map(|reference| rms_distance(series, reference)),
                             })

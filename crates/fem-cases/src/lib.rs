@@ -5,9 +5,11 @@
 //! - [`scene`]: the TOML scene format (mesh, material, energy, solver, boundary conditions,
 //!   gravity, obstacles, probes, output cadence), `--set key=value` overrides and validation
 //!   with one-line errors;
-//! - [`build`]: from a scene to a mesh, a [`fem_solvers::Model`] and a stepper;
-//! - [`run`]: the step loop with probes, frames, stress statistics, blow-up detection, timing
-//!   and the run outputs (`summary.json`, `probes.csv`, `frames.jsonl`);
+//! - [`build`]: from a scene to a mesh, a [`fem_solvers::Model`] and a stepper (explicit, PBD,
+//!   XPBD or implicit Euler);
+//! - [`run`]: the step loop (or, for `static`, the load-increment loop of the quasi-static
+//!   solver) with probes, frames, stress statistics, blow-up detection, timing and the run
+//!   outputs (`summary.json`, `probes.csv`, `frames.jsonl`);
 //! - [`cases`]: the built-in cases A-D (`fixtures/scenes/`);
 //! - [`compare`]: the energy x solver matrix on one scene;
 //! - [`sweep`]: parameter sweeps split into shards, and their merge;

@@ -12,10 +12,17 @@
 //! - `scene.toml`: the scene as run, overrides applied (a relative mesh path written absolute,
 //!   so the copy runs from the output directory).
 //!
-//! A run *blows up* when a step produces a non-finite value (the solver refuses it) or a
-//! displacement exceeds a thousand times the body's size; the outputs then describe the run up
-//! to that point, the summary says `"blew_up": true`, and [`run_scene`] returns the summary
-//! (callers that treat a blow-up as an error, like `fem2d run`, check [`Summary::blew_up`]).
+//! A run *blows up* when a step produces a non-finite value (the solver refuses it), a Newton
+//! solve does not converge (implicit, static) or a displacement exceeds a thousand times the
+//! body's size; the outputs then describe the run up to that point, the summary says
+//! `"blew_up": true`, and [`run_scene`] returns the summary (callers that treat a blow-up as an
+//! error, like `fem2d run`, check [`Summary::blew_up`]).
+//!
+//! A `static` scene has no time steps: the loop raises the load factor (gravity, tractions and
+//! prescribed displacements together) from 0 to 1 in `solver.load_steps` equal increments, each
+//! solved to equilibrium by the quasi-static solver from the previous one; an increment whose
+//! Newton solve fails is halved (at most 10 times in the run). Every converged increment is a
+//! frame, numbered by the increments converged so far, with the load factor as its `time`.
 
 use std::fmt::Write as _;
 use std::io::Write as _;
@@ -26,12 +33,15 @@ use fem_core::dispatch_energy;
 use fem_core::energy::Energy;
 use fem_core::math::{Real, Vec2};
 use fem_core::stress::{ElementStress, VonMisesFormula, populate_element_stress, vertex_average};
-use fem_solvers::{Model, SolverError, State, Stepper};
+use fem_solvers::{Model, SolverError, State, StaticParams, StaticSolver, Stepper};
 use serde::{Deserialize, Serialize};
 
-use crate::build::{Probe, build_mesh, build_model, build_stepper, energy, von_mises_formula};
+use crate::build::{
+    AnyStepper, Probe, add_loads, build_mesh, build_model, build_stepper, build_unloaded_model,
+    energy, prescribed_displacements, static_increment_params, von_mises_formula,
+};
 use crate::error::CaseError;
-use crate::scene::LoadedScene;
+use crate::scene::{LoadedScene, SolverKind};
 
 /// JSON has no NaN or infinity: `serde_json` writes them as `null`; these read `null` back as
 /// NaN, so a summary of a run that blew up round-trips.
@@ -89,13 +99,14 @@ pub struct Summary {
     pub plane: String,
     /// The von Mises formula used.
     pub von_mises_formula: String,
-    /// Time step, s.
+    /// Time step, s (as given in the scene; a static run does not use it).
     pub dt: f64,
-    /// Steps requested.
+    /// Steps requested (static: load increments requested, `solver.load_steps`).
     pub steps: u64,
-    /// Steps completed (less than `steps` after a blow-up).
+    /// Steps completed, less than `steps` after a blow-up (static: load increments converged,
+    /// halved ones counted, so it can exceed `steps`).
     pub steps_completed: u64,
-    /// Simulated time reached, s.
+    /// Simulated time reached, s (0 for a static run).
     pub simulated_seconds: f64,
     /// Vertex count.
     pub vertices: usize,
@@ -110,7 +121,7 @@ pub struct Summary {
     /// Triangles x steps completed / step_seconds.
     #[serde(deserialize_with = "nullable::f64")]
     pub element_steps_per_second: f64,
-    /// Simulated seconds per wall second of stepping.
+    /// Simulated seconds per wall second of stepping (0 for a static run).
     #[serde(deserialize_with = "nullable::f64")]
     pub real_time_factor: f64,
     /// Largest per-element von Mises stress over the recorded frames, Pa.
@@ -145,6 +156,15 @@ pub struct Summary {
     pub final_max_displacement: f64,
     /// Probes.
     pub probes: Vec<ProbeSummary>,
+    /// Newton iterations over the whole run, failed solves included (implicit and static; 0
+    /// for the other solvers).
+    #[serde(default)]
+    pub newton_iterations: u64,
+    /// Residual (norm of the force imbalance on the free vertices) at the end of the last
+    /// Newton solve that converged, N (implicit: the last step; static: the last load
+    /// increment); `null` for the other solvers or when no solve converged.
+    #[serde(default)]
+    pub final_residual: Option<f64>,
     /// Framework version.
     pub version: String,
 }
@@ -223,11 +243,14 @@ struct FrameWriter {
 }
 
 impl Recorder {
+    /// Record a frame of `state`, numbered `step` at `time` (the state's own step and time for
+    /// a time stepper; the increment count and the load factor for a static run).
     fn record<E: Energy>(
         &mut self,
         model: &Model<E>,
         state: &State,
         probes: &[Probe],
+        (step, time): (u64, f64),
     ) -> Result<(), CaseError> {
         let mesh = model.mesh();
         populate_element_stress(
@@ -250,10 +273,10 @@ impl Recorder {
             if *vm > self.max_vm.0 {
                 let [a, b, c] = mesh.gather(t, &state.x);
                 let centroid = (a + b + c) / 3.0;
-                self.max_vm = (*vm, state.step, t, [centroid.x, centroid.y]);
+                self.max_vm = (*vm, step, t, [centroid.x, centroid.y]);
             }
         }
-        self.frame_times.push((state.step, state.t));
+        self.frame_times.push((step, time));
         for (series, p) in self.probe_series.iter_mut().zip(probes) {
             let u = state.displacement(model, p.vertex);
             series.push([u.x, u.y]);
@@ -269,18 +292,13 @@ impl Recorder {
                 .find(|(_, u)| *u > limit)
             {
                 self.runaway = Some(format!(
-                    "vertex {i} moved {u:.3e} m at step {} (t = {:.6} s), more than 1000 times the body size",
-                    state.step, state.t
+                    "vertex {i} moved {u:.3e} m at step {step} (t = {time:.6} s), more than 1000 times the body size"
                 ));
             }
         }
         if let Some(w) = &mut self.frames {
             w.line.clear();
-            let _ = write!(
-                w.line,
-                "{{\"step\":{},\"time\":{},\"positions\":[",
-                state.step, state.t
-            );
+            let _ = write!(w.line, "{{\"step\":{step},\"time\":{time},\"positions\":[");
             for (k, x) in state.x.iter().enumerate() {
                 let sep = if k == 0 { "" } else { "," };
                 let _ = write!(w.line, "{sep}{},{}", x.x, x.y);
@@ -320,10 +338,29 @@ fn run_with<E: Energy>(
     energy: E,
 ) -> Result<RunResult, CaseError> {
     let s = &scene.scene;
-    let model = build_model(scene, mesh, energy)?;
+    let (model, mut driver) = if s.solver.kind == SolverKind::Static {
+        let unloaded = build_unloaded_model(scene, mesh, energy)?;
+        let mut model = unloaded.clone();
+        add_loads(scene, &mut model)?;
+        let solver = StaticSolver::new(&model, static_increment_params(scene))
+            .map_err(|e| CaseError::Solver(format!("{}: {e}", scene.origin)))?;
+        let prescribed = prescribed_displacements(scene, model.mesh().vertices())?;
+        let driver = Driver::Static {
+            solver: Box::new(solver),
+            unloaded: Box::new(unloaded),
+            prescribed,
+        };
+        (model, driver)
+    } else {
+        let model = build_model(scene, mesh, energy)?;
+        let stepper = build_stepper(scene, &model)?;
+        (model, Driver::Steps(Box::new(stepper)))
+    };
     let probes = crate::build::resolve_probes(scene, model.mesh());
-    let mut stepper = build_stepper(scene, &model)?;
-    let time_step_warning = stepper.time_step_warning();
+    let time_step_warning = match &driver {
+        Driver::Steps(stepper) => stepper.time_step_warning(),
+        Driver::Static { .. } => None,
+    };
     let mut state = State::at_rest(&model);
 
     if let Some(dir) = &options.out_dir {
@@ -361,64 +398,19 @@ fn run_with<E: Energy>(
         body_size: (hi - lo).norm().max(1e-12),
         runaway: None,
     };
-    let result = (|| -> Result<_, CaseError> {
-        let start = Instant::now();
-        rec.record(&model, &state, &probes)?;
-        let bar = progress_bar(options.progress, s.solver.steps);
-        let mut stepping = Duration::ZERO;
-        let mut min_det_f = Real::INFINITY;
-        let mut inverted = 0usize;
-        let mut blow_up: Option<String> = None;
-        let every = s.output.frame_every;
-        let mut done = 0u64;
-        while done < s.solver.steps && blow_up.is_none() {
-            let chunk = every.min(s.solver.steps - done);
-            let t0 = Instant::now();
-            let mut failed: Option<SolverError> = None;
-            for _ in 0..chunk {
-                match stepper.step(&model, &mut state) {
-                    Ok(report) => {
-                        min_det_f = min_det_f.min(report.min_det_f);
-                        inverted = inverted.max(report.inverted);
-                        done += 1;
-                    }
-                    Err(e) => {
-                        failed = Some(e);
-                        break;
-                    }
-                }
-            }
-            stepping += t0.elapsed();
-            if let Some(e) = failed {
-                blow_up = Some(format!("{}: {e}", scene.origin));
-            }
-            if done % every == 0 || done == s.solver.steps || blow_up.is_some() {
-                if rec.frame_times.last().map(|f| f.0) != Some(state.step) {
-                    rec.record(&model, &state, &probes)?;
-                }
-                if blow_up.is_none() {
-                    if let Some(m) = rec.runaway.take() {
-                        blow_up = Some(format!("{}: {m}", scene.origin));
-                    }
-                }
-            }
-            if let Some(b) = &bar {
-                b.set_position(done);
-            }
-        }
-        if let Some(b) = bar {
-            b.finish_and_clear();
-        }
-        Ok((
-            start.elapsed(),
-            stepping,
-            min_det_f,
-            inverted,
-            blow_up,
-            done,
-        ))
-    })();
-    let (wall, stepping, min_det_f, inverted, blow_up, done) = match result {
+    let result = match &mut driver {
+        Driver::Steps(stepper) => step_loop(
+            scene, options, &model, stepper, &mut state, &mut rec, &probes,
+        ),
+        Driver::Static {
+            solver,
+            unloaded,
+            prescribed,
+        } => static_loop(
+            scene, &model, unloaded, solver, prescribed, &mut state, &mut rec, &probes,
+        ),
+    };
+    let outcome = match result {
         Ok(r) => r,
         Err(e) => {
             if let Some(w) = &rec.frames {
@@ -427,6 +419,17 @@ fn run_with<E: Energy>(
             return Err(e);
         }
     };
+    let Outcome {
+        wall,
+        stepping,
+        min_det_f,
+        inverted,
+        blow_up,
+        done,
+        newton_iterations,
+        final_residual,
+    } = outcome;
+    let is_static = s.solver.kind == SolverKind::Static;
 
     let mesh = model.mesh();
     let mut vertex_vm = vec![0.0; mesh.n_vertices()];
@@ -439,7 +442,12 @@ fn run_with<E: Energy>(
         .map(|(x, x0)| (x - x0).norm())
         .fold(0.0, f64::max);
     let step_seconds = stepping.as_secs_f64();
-    let sim = done as f64 * s.solver.dt;
+    // A static run has no simulated time.
+    let sim = if is_static {
+        0.0
+    } else {
+        done as f64 * s.solver.dt
+    };
     let summary = Summary {
         scene: s.name.clone(),
         energy: s.energy.0.name().to_owned(),
@@ -450,7 +458,11 @@ fn run_with<E: Energy>(
         },
         von_mises_formula: rec.formula.describe(),
         dt: s.solver.dt,
-        steps: s.solver.steps,
+        steps: if is_static {
+            s.solver.load_steps as u64
+        } else {
+            s.solver.steps
+        },
         steps_completed: done,
         simulated_seconds: sim,
         vertices: mesh.n_vertices(),
@@ -495,6 +507,8 @@ fn run_with<E: Energy>(
                     }),
             })
             .collect(),
+        newton_iterations,
+        final_residual,
         version: env!("CARGO_PKG_VERSION").to_owned(),
     };
     let result = RunResult {
@@ -526,6 +540,231 @@ fn run_with<E: Energy>(
         write_outputs(scene, &result, dir)?;
     }
     Ok(result)
+}
+
+/// What advances the state: a time stepper, or the quasi-static solver with what the static
+/// loop needs (the model without loads, to scale them, and the prescribed displacements).
+enum Driver<E: Energy> {
+    Steps(Box<AnyStepper>),
+    Static {
+        solver: Box<StaticSolver>,
+        unloaded: Box<Model<E>>,
+        prescribed: Vec<Option<Vec2>>,
+    },
+}
+
+/// What a loop reports to the summary.
+struct Outcome {
+    wall: Duration,
+    stepping: Duration,
+    min_det_f: Real,
+    inverted: usize,
+    blow_up: Option<String>,
+    done: u64,
+    newton_iterations: u64,
+    final_residual: Option<f64>,
+}
+
+/// The time-stepping loop: `solver.steps` steps, a frame every `output.frame_every` steps.
+fn step_loop<E: Energy>(
+    scene: &LoadedScene,
+    options: &RunOptions,
+    model: &Model<E>,
+    stepper: &mut AnyStepper,
+    state: &mut State,
+    rec: &mut Recorder,
+    probes: &[Probe],
+) -> Result<Outcome, CaseError> {
+    let s = &scene.scene;
+    let newton = s.solver.kind.uses_newton();
+    let start = Instant::now();
+    rec.record(model, state, probes, (state.step, state.t))?;
+    let bar = progress_bar(options.progress, s.solver.steps);
+    let mut stepping = Duration::ZERO;
+    let mut min_det_f = Real::INFINITY;
+    let mut inverted = 0usize;
+    let mut blow_up: Option<String> = None;
+    let mut newton_iterations = 0u64;
+    let mut final_residual = None;
+    let every = s.output.frame_every;
+    let mut done = 0u64;
+    while done < s.solver.steps && blow_up.is_none() {
+        let chunk = every.min(s.solver.steps - done);
+        let t0 = Instant::now();
+        let mut failed: Option<SolverError> = None;
+        for _ in 0..chunk {
+            match stepper.step(model, state) {
+                Ok(report) => {
+                    min_det_f = min_det_f.min(report.min_det_f);
+                    inverted = inverted.max(report.inverted);
+                    if newton {
+                        newton_iterations += report.iterations as u64;
+                        final_residual = Some(report.residual);
+                    }
+                    done += 1;
+                }
+                Err(e) => {
+                    if let SolverError::NotConverged { iterations, .. } = e {
+                        newton_iterations += iterations as u64;
+                    }
+                    failed = Some(e);
+                    break;
+                }
+            }
+        }
+        stepping += t0.elapsed();
+        if let Some(e) = failed {
+            blow_up = Some(format!("{}: {e}", scene.origin));
+        }
+        if done % every == 0 || done == s.solver.steps || blow_up.is_some() {
+            if rec.frame_times.last().map(|f| f.0) != Some(state.step) {
+                rec.record(model, state, probes, (state.step, state.t))?;
+            }
+            if blow_up.is_none() {
+                if let Some(m) = rec.runaway.take() {
+                    blow_up = Some(format!("{}: {m}", scene.origin));
+                }
+            }
+        }
+        if let Some(b) = &bar {
+            b.set_position(done);
+        }
+    }
+    if let Some(b) = bar {
+        b.finish_and_clear();
+    }
+    Ok(Outcome {
+        wall: start.elapsed(),
+        stepping,
+        min_det_f,
+        inverted,
+        blow_up,
+        done,
+        newton_iterations,
+        final_residual,
+    })
+}
+
+/// Most halvings of a load increment over a static run (the quasi-static solver's default).
+fn static_max_bisections() -> usize {
+    StaticParams::default().max_bisections
+}
+
+/// The model with every load (gravity and nodal forces of `full`) scaled by `factor`.
+fn scaled_model<E: Energy>(
+    unloaded: &Model<E>,
+    full: &Model<E>,
+    factor: Real,
+) -> Result<Model<E>, SolverError> {
+    let mut m = unloaded.clone();
+    m.set_gravity(factor * full.gravity())?;
+    for &(v, f) in full.external_forces() {
+        m.add_external_force(v as usize, factor * f)?;
+    }
+    Ok(m)
+}
+
+/// The static loop: the load factor goes from 0 to 1 in `solver.load_steps` equal increments
+/// (an increment that fails is halved), every converged increment a frame.
+#[allow(clippy::too_many_arguments)]
+fn static_loop<E: Energy>(
+    scene: &LoadedScene,
+    model: &Model<E>,
+    unloaded: &Model<E>,
+    solver: &mut StaticSolver,
+    prescribed: &[Option<Vec2>],
+    state: &mut State,
+    rec: &mut Recorder,
+    probes: &[Probe],
+) -> Result<Outcome, CaseError> {
+    let s = &scene.scene;
+    let solver_err = |e: SolverError| CaseError::Solver(format!("{}: {e}", scene.origin));
+    let start = Instant::now();
+    rec.record(model, state, probes, (0, 0.0))?;
+    let rest = model.mesh().vertices().to_vec();
+    let place = |state: &mut State, factor: Real| {
+        for (v, u) in prescribed.iter().enumerate() {
+            if let Some(u) = u {
+                state.x[v] = rest[v] + factor * u;
+            }
+        }
+    };
+    let mut stepping = Duration::ZERO;
+    let mut min_det_f = Real::INFINITY;
+    let mut inverted = 0usize;
+    let mut blow_up: Option<String> = None;
+    let mut newton_iterations = 0u64;
+    let mut final_residual = None;
+    let mut done = 0u64;
+    let mut factor: Real = 0.0;
+    let mut increment = 1.0 / s.solver.load_steps as Real;
+    let mut halvings = 0usize;
+    while factor < 1.0 && blow_up.is_none() {
+        // The last increment lands on 1 exactly, whatever the rounding of the sum.
+        let next = if factor + increment > 1.0 - 1e-12 {
+            1.0
+        } else {
+            factor + increment
+        };
+        let loaded = scaled_model(unloaded, model, next).map_err(solver_err)?;
+        place(state, next);
+        let t0 = Instant::now();
+        let outcome = solver.solve(&loaded, state);
+        stepping += t0.elapsed();
+        match outcome {
+            Ok(report) => {
+                factor = next;
+                done += 1;
+                newton_iterations += report.iterations() as u64;
+                final_residual = Some(report.residual());
+                for r in &report.increments {
+                    min_det_f = min_det_f.min(r.min_det_f);
+                    inverted = inverted.max(r.inverted);
+                }
+                rec.record(model, state, probes, (done, factor))?;
+                if let Some(m) = rec.runaway.take() {
+                    blow_up = Some(format!("{}: {m}", scene.origin));
+                }
+            }
+            Err(e) => {
+                // The solver leaves the state as it was; put the prescribed vertices back.
+                place(state, factor);
+                let reason = match &e {
+                    SolverError::NotConverged {
+                        iterations,
+                        residual,
+                        ..
+                    } => {
+                        newton_iterations += *iterations as u64;
+                        format!(
+                            "Newton did not converge in {iterations} iterations (residual {residual:.4e} N); add load steps or raise max_iterations"
+                        )
+                    }
+                    other => other.to_string(),
+                };
+                if halvings >= static_max_bisections() {
+                    blow_up = Some(format!(
+                        "{}: load increment {} (load factor {factor} to {next}, after {halvings} halvings): {reason}",
+                        scene.origin,
+                        done + 1
+                    ));
+                } else {
+                    halvings += 1;
+                    increment *= 0.5;
+                }
+            }
+        }
+    }
+    Ok(Outcome {
+        wall: start.elapsed(),
+        stepping,
+        min_det_f,
+        inverted,
+        blow_up,
+        done,
+        newton_iterations,
+        final_residual,
+    })
 }
 
 fn max_finite(v: &[f64]) -> f64 {

@@ -1,6 +1,7 @@
 //! Scene files: one TOML file describes a whole simulation (mesh, material, energy, solver,
-//! boundary conditions, gravity, obstacles, probes, steps and output cadence). The schema is
-//! documented field by field in `docs/scenes.md`; the built-in cases live in `fixtures/scenes/`.
+//! boundary conditions, gravity and boundary tractions, obstacles, probes, steps and output
+//! cadence). The schema is documented field by field in `docs/scenes.md`; the built-in cases
+//! live in `fixtures/scenes/`.
 //!
 //! Loading is three steps, each with one-line errors that name the file, the field and the
 //! value:
@@ -47,6 +48,9 @@ pub struct Scene {
     /// Regions moved with a constant velocity during a time window.
     #[serde(default)]
     pub prescribed: Vec<PrescribedSpec>,
+    /// Uniform tractions on the boundary edges inside boxes of rest positions.
+    #[serde(default)]
+    pub traction: Vec<TractionSpec>,
     /// A ground half-space.
     #[serde(default)]
     pub ground: Option<GroundSpec>,
@@ -217,8 +221,7 @@ impl PlaneName {
     }
 }
 
-/// Solver names (`implicit` and `static` are reserved names the scene format accepts; this
-/// version reports them as not available).
+/// Solver names.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum SolverKind {
@@ -228,9 +231,9 @@ pub enum SolverKind {
     Pbd,
     /// Energy-based XPBD.
     Xpbd,
-    /// Implicit Euler (not available in this version).
+    /// Implicit (backward) Euler: Newton on the incremental potential.
     Implicit,
-    /// Quasi-static equilibrium (not available in this version).
+    /// Quasi-static equilibrium under the full load, reached in load increments.
     Static,
 }
 
@@ -244,9 +247,22 @@ impl SolverKind {
         SolverKind::Static,
     ];
 
-    /// The solvers this version runs.
-    pub const AVAILABLE: [SolverKind; 3] =
-        [SolverKind::Explicit, SolverKind::Pbd, SolverKind::Xpbd];
+    /// The solvers this version runs (all of them).
+    pub const AVAILABLE: [SolverKind; 5] = SolverKind::ALL;
+
+    /// Whether the solver handles contact (a ground or obstacles): explicit, PBD and XPBD do,
+    /// the Newton-based implicit and static solvers do not.
+    pub fn handles_contact(self) -> bool {
+        matches!(
+            self,
+            SolverKind::Explicit | SolverKind::Pbd | SolverKind::Xpbd
+        )
+    }
+
+    /// Whether the solver runs Newton's method (implicit, static).
+    pub fn uses_newton(self) -> bool {
+        matches!(self, SolverKind::Implicit | SolverKind::Static)
+    }
 
     /// The name on the command line and in files.
     pub fn name(self) -> &'static str {
@@ -353,6 +369,17 @@ pub struct SolverSpec {
     /// PBD/XPBD with `ordering = "jacobi"`: relaxation in (0, 2). Default 1.
     #[serde(default = "one")]
     pub relaxation: f64,
+    /// Implicit/static: Newton's relative tolerance on the residual (the force imbalance),
+    /// in (0, 1). Default 1e-8.
+    #[serde(default = "default_tolerance")]
+    pub tolerance: f64,
+    /// Implicit/static: most Newton iterations per solve (a step or a load increment).
+    /// Default 50.
+    #[serde(default = "default_max_iterations")]
+    pub max_iterations: usize,
+    /// Static: equal load increments from no load to the full load (>= 1). Default 1.
+    #[serde(default = "default_load_steps")]
+    pub load_steps: usize,
 }
 
 fn default_solver() -> SolverKind {
@@ -362,6 +389,15 @@ fn default_iterations() -> usize {
     10
 }
 fn default_substeps() -> usize {
+    1
+}
+fn default_tolerance() -> f64 {
+    1e-8
+}
+fn default_max_iterations() -> usize {
+    50
+}
+fn default_load_steps() -> usize {
     1
 }
 fn one() -> f64 {
@@ -393,6 +429,21 @@ pub struct PrescribedSpec {
     pub start: f64,
     /// Window end, s. Default: the end of the run.
     pub end: Option<f64>,
+}
+
+/// A uniform traction (force per unit boundary length per unit thickness, Pa) on every boundary
+/// edge whose two end vertices lie in the box of rest positions `[min, max]` (closed, with a
+/// 1e-9 m margin). A dead load: fixed in direction and magnitude, it does not follow the
+/// deforming surface.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TractionSpec {
+    /// Lower-left corner of the box, m.
+    pub min: [f64; 2],
+    /// Upper-right corner of the box, m.
+    pub max: [f64; 2],
+    /// Traction `[tx, ty]`, Pa (N/m^2 per unit thickness).
+    pub traction: [f64; 2],
 }
 
 /// The ground `y >= height` (or a tilted half-space through `point` with `normal`).
@@ -758,10 +809,21 @@ impl LoadedScene {
 
         let v = &s.solver;
         if !SolverKind::AVAILABLE.contains(&v.kind) {
+            let names: Vec<&str> = SolverKind::AVAILABLE.iter().map(|k| k.name()).collect();
             return Err(self.error(
                 "solver.kind",
                 v.kind,
-                "is not available in this version (available: explicit, pbd, xpbd)",
+                &format!(
+                    "is not available in this version (available: {})",
+                    names.join(", ")
+                ),
+            ));
+        }
+        if !v.kind.handles_contact() && (s.ground.is_some() || !s.obstacles.is_empty()) {
+            return Err(self.error(
+                "solver.kind",
+                v.kind,
+                "does not handle contact and the scene has a ground or obstacles (contact needs explicit, pbd or xpbd)",
             ));
         }
         positive("solver.dt", v.dt, "s")?;
@@ -786,6 +848,19 @@ impl LoadedScene {
                 "must lie in the open interval (0, 2)",
             ));
         }
+        if !(v.tolerance > 0.0 && v.tolerance < 1.0) {
+            return Err(self.error(
+                "solver.tolerance",
+                v.tolerance,
+                "must lie in the open interval (0, 1) (relative to the force scale)",
+            ));
+        }
+        if v.max_iterations == 0 {
+            return Err(self.error("solver.max_iterations", 0, "must be >= 1"));
+        }
+        if v.load_steps == 0 {
+            return Err(self.error("solver.load_steps", 0, "must be >= 1"));
+        }
 
         point("gravity", s.gravity)?;
         for (i, r) in s.pinned.iter().enumerate() {
@@ -801,6 +876,11 @@ impl LoadedScene {
                     return Err(self.error(&format!("{f}.end"), end, "must be >= start (s)"));
                 }
             }
+        }
+        for (i, t) in s.traction.iter().enumerate() {
+            let f = format!("traction.{i}");
+            boxed(&f, t.min, t.max)?;
+            point(&format!("{f}.traction"), t.traction)?;
         }
         if let Some(g) = &s.ground {
             match (g.height, g.point, g.normal) {

@@ -69,7 +69,7 @@ fn compare_writes_markdown_csv_and_json_with_one_row_per_combination() {
 #[test]
 fn compare_rejects_unknown_names_in_one_line() {
     one_line_error(&fem2d(&["compare", "case-a", "--energies", "stvk,foo"]));
-    one_line_error(&fem2d(&["compare", "case-a", "--solvers", "implicit"]));
+    one_line_error(&fem2d(&["compare", "case-a", "--solvers", "explicit,rk4"]));
     one_line_error(&fem2d(&["compare", "case-z"]));
 }
 

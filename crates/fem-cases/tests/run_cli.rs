@@ -314,7 +314,7 @@ fn energy_and_solver_flags_reach_the_run() {
 #[test]
 fn thread_count_does_not_change_the_numbers() {
     let dir = scratch("threads");
-    for solver in ["explicit", "pbd", "xpbd"] {
+    for solver in ["explicit", "pbd", "xpbd", "implicit"] {
         let one = dir.join(format!("{solver}-1"));
         let two = dir.join(format!("{solver}-2"));
         let common = ["case-a", "--steps", "100", "--solver", solver];
@@ -506,8 +506,36 @@ fn bad_input_is_one_error_line_and_no_output() {
             vec!["energy", "`foo`", "stvk"],
         ),
         (
-            vec!["case-a", "--solver", "implicit"],
-            vec!["solver.kind = implicit", "not available"],
+            vec!["case-d", "--solver", "implicit"],
+            vec!["built-in case-d", "solver.kind = implicit", "contact"],
+        ),
+        (
+            vec![
+                "case-a",
+                "--solver",
+                "static",
+                "--set",
+                "solver.load_steps=0",
+            ],
+            vec!["solver.load_steps = 0"],
+        ),
+        (
+            vec![
+                "case-a",
+                "--solver",
+                "implicit",
+                "--set",
+                "solver.tolerance=0",
+            ],
+            vec!["solver.tolerance = 0"],
+        ),
+        (
+            vec![
+                "case-a",
+                "--set",
+                "traction=[{min = [9.0, 9.0], max = [9.5, 9.5], traction = [0.0, 1.0]}]",
+            ],
+            vec!["traction.0", "contains no boundary edge"],
         ),
         (
             vec!["case-a", "--solver", "euler"],

@@ -141,6 +141,9 @@ steps = 5
     assert_eq!((s.solver.iterations, s.solver.substeps), (10, 1));
     assert_eq!((s.solver.stiffness, s.solver.compliance), (1.0, 1.0));
     assert_eq!(s.solver.relaxation, 1.0);
+    assert_eq!(s.solver.tolerance, 1e-8);
+    assert_eq!((s.solver.max_iterations, s.solver.load_steps), (50, 1));
+    assert!(s.traction.is_empty());
     assert_eq!(s.output.frame_every, 10);
     assert!(s.output.frames);
     assert!(s.pinned.is_empty() && s.probes.is_empty() && s.obstacles.is_empty());
@@ -394,6 +397,12 @@ fn solver_values_out_of_range() {
         ("solver.damping=-1", "solver.damping = -1"),
         ("solver.compliance=-1", "solver.compliance = -1"),
         ("solver.relaxation=2", "solver.relaxation = 2"),
+        ("solver.tolerance=0", "solver.tolerance = 0"),
+        ("solver.tolerance=-1e-6", "solver.tolerance = -0.000001"),
+        ("solver.tolerance=1.5", "solver.tolerance = 1.5"),
+        ("solver.tolerance=nan", "solver.tolerance = NaN"),
+        ("solver.max_iterations=0", "solver.max_iterations = 0"),
+        ("solver.load_steps=0", "solver.load_steps = 0"),
         ("output.frame_every=0", "output.frame_every = 0"),
         ("gravity=[0.0, nan]", "gravity = [0, NaN]"),
     ] {
@@ -403,6 +412,62 @@ fn solver_values_out_of_range() {
     // A negative step count does not fit the unsigned type.
     let e = case_a_err(&["solver.steps=-3"]);
     assert_mentions(&e, &["solver.steps", "-3"]);
+    let e = case_a_err(&["solver.load_steps=-2"]);
+    assert_mentions(&e, &["solver.load_steps", "-2"]);
+    let e = case_a_err(&["solver.load_steps=1.5"]);
+    assert_mentions(&e, &["solver.load_steps", "1.5"]);
+}
+
+#[test]
+fn traction_entries_are_checked() {
+    let t = |v: &str| format!("traction=[{v}]");
+    let ok = case_a(&[&t(
+        "{min = [5.0, 0.0], max = [5.0, 1.0], traction = [0.0, -1.0]}",
+    )])
+    .unwrap()
+    .scene;
+    assert_eq!(ok.traction.len(), 1);
+    assert_eq!(ok.traction[0].traction, [0.0, -1.0]);
+    assert_eq!(ok.traction[0].max, [5.0, 1.0]);
+    for (value, needle) in [
+        (
+            "{min = [5.0, 0.0], max = [5.0, 1.0], traction = [0.0, nan]}",
+            "traction.0.traction = [0, NaN]",
+        ),
+        (
+            "{min = [5.0, 2.0], max = [5.0, 1.0], traction = [0.0, 1.0]}",
+            "traction.0.min = [5, 2]",
+        ),
+        (
+            "{min = [5.0, 0.0], max = [5.0, 1.0]}",
+            "traction.0: missing field `traction`",
+        ),
+        (
+            "{min = [5.0, 0.0], max = [5.0, 1.0], traction = [0.0, 1.0], pressure = 1.0}",
+            "traction.0.pressure: unknown field `pressure`",
+        ),
+    ] {
+        let e = case_a_err(&[&t(value)]);
+        assert_mentions(&e, &[needle]);
+    }
+    // A box with vertices but no boundary edge: raised when the model is built.
+    let scene = case_a(&[
+        &t("{min = [2.0, 0.2], max = [3.0, 0.8], traction = [0.0, 1.0]}"),
+        "solver.steps=1",
+    ])
+    .unwrap();
+    let e = run_scene(&scene, &RunOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert_one_line(&e);
+    assert_mentions(
+        &e,
+        &[
+            "built-in case-a",
+            "traction.0 = ",
+            "contains no boundary edge",
+        ],
+    );
 }
 
 #[test]
@@ -430,17 +495,26 @@ fn unknown_energy_and_solver_names() {
 }
 
 #[test]
-fn reserved_solvers_are_not_available() {
+fn every_solver_is_available_and_newton_solvers_refuse_contact() {
+    assert_eq!(SolverKind::AVAILABLE, SolverKind::ALL);
     for name in ["implicit", "static"] {
-        let e = case_a_err(&[&format!("solver.kind={name}")]);
-        assert_mentions(
-            &e,
-            &[
-                &format!("solver.kind = {name}"),
-                "not available",
-                "explicit, pbd, xpbd",
-            ],
-        );
+        let s = case_a(&[&format!("solver.kind={name}")]).unwrap().scene;
+        assert_eq!(s.solver.kind.name(), name);
+        // Case D has a ground and an obstacle; case A with a ground is refused too.
+        for (case, extra) in [("case-d", None), ("case-a", Some("ground.height=-5.0"))] {
+            let mut o = vec![format!("solver.kind={name}")];
+            o.extend(extra.map(str::to_owned));
+            let e = load_case(case, &o).unwrap_err().to_string();
+            assert_one_line(&e);
+            assert_mentions(
+                &e,
+                &[
+                    &format!("built-in {case}"),
+                    &format!("solver.kind = {name}"),
+                    "does not handle contact",
+                ],
+            );
+        }
     }
 }
 
@@ -698,14 +772,17 @@ fn docs_example_scenes_parse_and_run() {
     );
 }
 
-/// The field names a table accepts, from the "unknown field" error's list.
-fn accepted_fields(case: &str, table: &str) -> Vec<String> {
+/// The field names a table accepts, from the "unknown field" error's list (`pre`: overrides
+/// applied first, to create an array element the case does not have).
+fn accepted_fields(case: &str, pre: &[&str], table: &str) -> Vec<String> {
     let key = if table.is_empty() {
         "zzz_unknown=1".to_owned()
     } else {
         format!("{table}.zzz_unknown=1")
     };
-    let e = load_case(case, &[key]).unwrap_err().to_string();
+    let mut overrides: Vec<String> = pre.iter().map(|s| (*s).to_owned()).collect();
+    overrides.push(key);
+    let e = load_case(case, &overrides).unwrap_err().to_string();
     // serde lists them as "expected `a`", "expected `a` or `b`" or "expected one of `a`, `b`".
     let list = e
         .split("unknown field `zzz_unknown`, expected ")
@@ -730,21 +807,24 @@ fn docs_describe_every_field() {
         let end = rest[3..].find("\n## ").map_or(rest.len(), |i| i + 3);
         &rest[..end]
     };
-    for (case, table, heading) in [
-        ("case-a", "", "Top level"),
-        ("case-a", "mesh", "`[mesh]`"),
-        ("case-a", "material", "`[material]`"),
-        ("case-a", "solver", "`[solver]`"),
-        ("case-a", "pinned.0", "`[[pinned]]`"),
-        ("case-b", "prescribed.0", "`[[prescribed]]`"),
-        ("case-a", "ground", "`[ground]`"),
-        ("case-d", "obstacles.0", "`[[obstacles]]`"),
-        ("case-a", "contact", "`[contact]`"),
-        ("case-a", "probes.0", "`[[probes]]`"),
-        ("case-a", "output", "`[output]`"),
+    let traction = "traction=[{min = [5.0, 0.0], max = [5.0, 1.0], traction = [0.0, 1.0]}]";
+    for (case, pre, table, heading) in [
+        ("case-a", None, "", "Top level"),
+        ("case-a", None, "mesh", "`[mesh]`"),
+        ("case-a", None, "material", "`[material]`"),
+        ("case-a", None, "solver", "`[solver]`"),
+        ("case-a", None, "pinned.0", "`[[pinned]]`"),
+        ("case-b", None, "prescribed.0", "`[[prescribed]]`"),
+        ("case-a", Some(traction), "traction.0", "`[[traction]]`"),
+        ("case-a", None, "ground", "`[ground]`"),
+        ("case-d", None, "obstacles.0", "`[[obstacles]]`"),
+        ("case-a", None, "contact", "`[contact]`"),
+        ("case-a", None, "probes.0", "`[[probes]]`"),
+        ("case-a", None, "output", "`[output]`"),
     ] {
         let text = section(heading);
-        let fields = accepted_fields(case, table);
+        let pre: Vec<&str> = pre.into_iter().collect();
+        let fields = accepted_fields(case, &pre, table);
         assert!(fields.len() >= 2, "{table}: {fields:?}");
         for f in fields {
             let documented = [format!("`{f}`"), format!("`[{f}]`"), format!("`[[{f}]]`")]

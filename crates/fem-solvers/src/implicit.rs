@@ -86,7 +86,7 @@ impl ImplicitStepper {
             ));
         }
         let kinematic: Vec<usize> = model.kinematics().vertices().collect();
-        let solver = NewtonSolver::new(model.mesh(), &kinematic)?;
+        let solver = NewtonSolver::new(model.mesh(), &kinematic, "implicit")?;
         let n = model.mesh().n_vertices();
         Ok(ImplicitStepper {
             decay: (-params.damping * params.dt).exp(),

@@ -111,6 +111,8 @@ pub struct NewtonReport {
 /// The reduced Hessian (free degrees of freedom only, lower triangle, compressed columns),
 /// its symbolic factorisation and the buffers of every Newton iteration.
 pub(crate) struct NewtonSolver {
+    /// Field prefix of error messages (`implicit`, `static`).
+    prefix: &'static str,
     /// Free-DOF index of each of the `2 n_vertices` DOFs, or `u32::MAX` when kinematic.
     free: Vec<u32>,
     n_free: usize,
@@ -181,7 +183,12 @@ impl<E: Energy> Potential<'_, E> {
 impl NewtonSolver {
     /// Build the reduced pattern for `mesh` with the vertices `kinematic` held (sorted,
     /// deduplicated), and analyse it symbolically.
-    pub(crate) fn new(mesh: &Mesh, kinematic: &[usize]) -> Result<Self, SolverError> {
+    pub(crate) fn new(
+        mesh: &Mesh,
+        kinematic: &[usize],
+        prefix: &'static str,
+    ) -> Result<Self, SolverError> {
+        let self_prefix = prefix;
         let stiffness = Stiffness::new(mesh);
         let n_dof = 2 * mesh.n_vertices();
         let mut free = vec![0u32; n_dof];
@@ -203,7 +210,7 @@ impl NewtonSolver {
         }
         if n_free == 0 {
             return Err(SolverError::invalid(
-                "kinematics",
+                format!("{prefix}.kinematics"),
                 "every vertex",
                 "an implicit or static solve needs at least one free vertex",
             ));
@@ -245,7 +252,7 @@ impl NewtonSolver {
         )
         .map_err(|e| {
             SolverError::invalid(
-                "implicit.factorisation",
+                format!("{}.factorisation", self_prefix),
                 format!("{e:?}"),
                 "symbolic analysis failed",
             )
@@ -256,12 +263,13 @@ impl NewtonSolver {
         ]);
         let mem = MemBuffer::try_new(req).map_err(|_| {
             SolverError::invalid(
-                "implicit.factorisation",
+                format!("{}.factorisation", self_prefix),
                 n_free,
                 "out of memory for the workspace",
             )
         })?;
         Ok(NewtonSolver {
+            prefix,
             l_values: vec![0.0; symbolic.len_val()],
             symbolic,
             mem,
@@ -390,7 +398,7 @@ impl NewtonSolver {
             }
         }
         Err(SolverError::invalid(
-            "implicit.hessian",
+            format!("{}.hessian", self.prefix),
             format!("shift {shift:e}"),
             "is not positive definite even with a diagonal shift (is the body anchored?)",
         ))
@@ -417,7 +425,7 @@ impl NewtonSolver {
         let (mut phi, mut magnitude) = p.value(x, &mut self.scratch);
         if !phi.is_finite() {
             return Err(SolverError::invalid(
-                "implicit.initial_guess",
+                format!("{}.initial_guess", self.prefix),
                 phi,
                 "the potential is not finite at the starting positions",
             ));

@@ -91,7 +91,7 @@ impl StaticSolver {
         let n = model.mesh().n_vertices();
         Ok(StaticSolver {
             params,
-            solver: NewtonSolver::new(model.mesh(), &kinematic)?,
+            solver: NewtonSolver::new(model.mesh(), &kinematic, "static")?,
             load: vec![Vec2::zeros(); n],
             scaled: vec![Vec2::zeros(); n],
             backup: vec![Vec2::zeros(); n],

@@ -33,7 +33,8 @@ pub struct CompareArgs {
         default_value = "stvk,corotational,neo-hookean"
     )]
     pub energies: Vec<String>,
-    /// Solvers (comma-separated).
+    /// Solvers (comma-separated): explicit, pbd, xpbd, implicit, static. Implicit and static do
+    /// not handle contact (their rows on a scene with a ground or obstacles carry the error).
     #[arg(long, value_delimiter = ',', default_value = "explicit,pbd,xpbd")]
     pub solvers: Vec<String>,
     /// PBD/XPBD iteration counts to compare (comma-separated; default: the scene's).
@@ -69,8 +70,10 @@ pub fn run(args: &CompareArgs) -> Result<(), String> {
         })
         .collect::<Result<Vec<_>, _>>()?;
     if let Some(s) = solvers.iter().find(|s| !SolverKind::AVAILABLE.contains(s)) {
+        let names: Vec<&str> = SolverKind::AVAILABLE.iter().map(|k| k.name()).collect();
         return Err(format!(
-            "--solvers: `{s}` is not available in this version (available: explicit, pbd, xpbd)"
+            "--solvers: `{s}` is not available in this version (available: {})",
+            names.join(", ")
         ));
     }
     if let Some(0) = args.iterations.iter().copied().find(|&n| n == 0) {

@@ -27,7 +27,8 @@ pub struct RunArgs {
     /// Energy: stvk, corotational, neo-hookean, stable-neo-hookean, linear (default: the scene's).
     #[arg(long)]
     pub energy: Option<String>,
-    /// Solver: explicit, pbd, xpbd (default: the scene's).
+    /// Solver: explicit, pbd, xpbd, implicit, static (default: the scene's). `static` solves for
+    /// equilibrium in `solver.load_steps` load increments (dt and steps do not apply).
     #[arg(long)]
     pub solver: Option<String>,
     /// Time step, s (default: the scene's). A negative value is read as a number, so that
@@ -96,18 +97,33 @@ pub fn run(args: &RunArgs) -> Result<(), String> {
     if let Some(w) = &s.time_step_warning {
         eprintln!("warning: {w}");
     }
-    println!(
-        "{}: {} / {}, {} triangles, {} steps of {:e} s in {:.3} s ({:.3e} element-steps/s, real-time factor {:.2})",
-        s.scene,
-        s.energy,
-        s.solver,
-        s.triangles,
-        s.steps_completed,
-        s.dt,
-        s.step_seconds,
-        s.element_steps_per_second,
-        s.real_time_factor
-    );
+    if s.solver == "static" {
+        println!(
+            "{}: {} / static, {} triangles, {} load increments in {:.3} s",
+            s.scene, s.energy, s.triangles, s.steps_completed, s.step_seconds,
+        );
+    } else {
+        println!(
+            "{}: {} / {}, {} triangles, {} steps of {:e} s in {:.3} s ({:.3e} element-steps/s, real-time factor {:.2})",
+            s.scene,
+            s.energy,
+            s.solver,
+            s.triangles,
+            s.steps_completed,
+            s.dt,
+            s.step_seconds,
+            s.element_steps_per_second,
+            s.real_time_factor
+        );
+    }
+    if s.solver == "static" || s.solver == "implicit" {
+        println!(
+            "Newton: {} iterations, final residual {}",
+            s.newton_iterations,
+            s.final_residual
+                .map_or_else(|| "-".to_owned(), |r| format!("{r:.3e} N"))
+        );
+    }
     println!(
         "max von Mises {:.4e} Pa (step {}, element {} at [{}, {}] m), min det F {}, inverted elements {}",
         s.max_von_mises,
