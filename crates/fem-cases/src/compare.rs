@@ -85,6 +85,19 @@ pub struct Comparison {
     pub steps: u64,
     /// The rows.
     pub rows: Vec<CompareRow>,
+    /// Each row's probe curves: frame times (s; load factors for static rows) and, per probe,
+    /// the displacement at each frame (m). Empty for rows that could not run.
+    #[serde(skip)]
+    pub curves: Vec<Curves>,
+}
+
+/// The probe curves of one comparison row.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Curves {
+    /// Frame times, s.
+    pub times: Vec<f64>,
+    /// `(probe name, displacement per frame)`.
+    pub probes: Vec<(String, Vec<[f64; 2]>)>,
 }
 
 /// Run the matrix. `load` builds the scene with extra overrides (the energy, solver and
@@ -96,6 +109,7 @@ pub fn compare(
     let base = load(&[])?;
     let mut rows = Vec::new();
     let mut header = None;
+    let mut curves = Vec::new();
     for &energy in &spec.energies {
         let mut explicit: Option<RunResult> = None;
         for &solver in &spec.solvers {
@@ -116,6 +130,15 @@ pub fn compare(
                 });
                 let row = match outcome {
                     Ok(result) => {
+                        curves.push(Curves {
+                            times: result.frame_times.iter().map(|f| f.1).collect(),
+                            probes: result
+                                .probes
+                                .iter()
+                                .zip(&result.probe_series)
+                                .map(|(p, series)| (p.name.clone(), series.clone()))
+                                .collect(),
+                        });
                         let s = &result.summary;
                         // dt and steps as the scene gives them (a static row reports load
                         // increments as its steps).
@@ -162,21 +185,24 @@ pub fn compare(
                         }
                         row
                     }
-                    Err(e) => CompareRow {
-                        energy: energy.name().into(),
-                        solver: solver.name().into(),
-                        variant,
-                        stable: false,
-                        steps_completed: 0,
-                        probes: Vec::new(),
-                        max_von_mises: f64::NAN,
-                        min_det_f: f64::NAN,
-                        inverted_elements: 0,
-                        step_seconds: 0.0,
-                        element_steps_per_second: 0.0,
-                        real_time_factor: 0.0,
-                        error: Some(e.to_string()),
-                    },
+                    Err(e) => {
+                        curves.push(Curves::default());
+                        CompareRow {
+                            energy: energy.name().into(),
+                            solver: solver.name().into(),
+                            variant,
+                            stable: false,
+                            steps_completed: 0,
+                            probes: Vec::new(),
+                            max_von_mises: f64::NAN,
+                            min_det_f: f64::NAN,
+                            inverted_elements: 0,
+                            step_seconds: 0.0,
+                            element_steps_per_second: 0.0,
+                            real_time_factor: 0.0,
+                            error: Some(e.to_string()),
+                        }
+                    }
                 };
                 rows.push(row);
             }
@@ -190,6 +216,7 @@ pub fn compare(
         dt,
         steps,
         rows,
+        curves,
     })
 }
 
@@ -386,6 +413,51 @@ impl Comparison {
                 r.real_time_factor,
                 r.error.as_deref().unwrap_or_default().replace('"', "'")
             );
+        }
+        out
+    }
+
+    /// The probe curves of every row side by side, one line per frame of the longest run:
+    /// `step`, then for each row and probe `ENERGY/SOLVER[/VARIANT]:PROBE.ux` and `.uy` (m);
+    /// with `time` (s) taken from the row of that length. Rows that stopped early leave their
+    /// later cells empty. For plotting tip curves of several solvers or energies on one chart.
+    pub fn to_curves_csv(&self) -> String {
+        let longest = self
+            .curves
+            .iter()
+            .max_by_key(|c| c.times.len())
+            .cloned()
+            .unwrap_or_default();
+        let mut out = String::from("frame,time");
+        for (r, c) in self.rows.iter().zip(&self.curves) {
+            let label = if r.variant.is_empty() {
+                format!("{}/{}", r.energy, r.solver)
+            } else {
+                format!(
+                    "{}/{}/{}",
+                    r.energy,
+                    r.solver,
+                    r.variant.replace(", ", "-").replace(' ', "-")
+                )
+            };
+            for (name, _) in &c.probes {
+                let _ = write!(out, ",{label}:{name}.ux,{label}:{name}.uy");
+            }
+        }
+        out.push('\n');
+        for (k, t) in longest.times.iter().enumerate() {
+            let _ = write!(out, "{k},{t}");
+            for c in &self.curves {
+                for (_, series) in &c.probes {
+                    match series.get(k) {
+                        Some(u) => {
+                            let _ = write!(out, ",{},{}", u[0], u[1]);
+                        }
+                        None => out.push_str(",,"),
+                    }
+                }
+            }
+            out.push('\n');
         }
         out
     }

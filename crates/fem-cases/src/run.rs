@@ -9,6 +9,7 @@
 //!   positions (`[x0, y0, x1, y1, ...]`), the obstacle polygons and the per-element von Mises
 //!   stress, for renderers;
 //! - `mesh.json`: the rest mesh (mesh JSON contract);
+//! - `stress.json`: the last frame's von Mises stress per element and per vertex;
 //! - `scene.toml`: the scene as run, overrides applied (a relative mesh path written absolute,
 //!   so the copy runs from the output directory).
 //!
@@ -821,6 +822,21 @@ pub fn probes_csv(result: &RunResult) -> String {
     out
 }
 
+/// `stress.json`: the von Mises stress of the last recorded frame per element (triangle order)
+/// and area-averaged per vertex (vertex order), Pa, with the formula used; non-finite values
+/// (inverted elements) are `null`.
+pub fn stress_json(result: &RunResult) -> String {
+    let finite =
+        |v: &[f64]| -> Vec<Option<f64>> { v.iter().map(|x| x.is_finite().then_some(*x)).collect() };
+    let value = serde_json::json!({
+        "formula": result.summary.von_mises_formula,
+        "step": result.frame_times.last().map_or(0, |f| f.0),
+        "per_element": finite(&result.final_von_mises),
+        "per_vertex": finite(&result.final_vertex_von_mises),
+    });
+    serde_json::to_string(&value).unwrap_or_default()
+}
+
 fn write_outputs(scene: &LoadedScene, result: &RunResult, dir: &Path) -> Result<(), CaseError> {
     let summary = serde_json::to_string_pretty(&result.summary)
         .map_err(|e| CaseError::Io(format!("summary.json: {e}")))?;
@@ -847,6 +863,7 @@ fn write_outputs(scene: &LoadedScene, result: &RunResult, dir: &Path) -> Result<
     let toml =
         toml::to_string_pretty(&as_run).map_err(|e| CaseError::Io(format!("scene.toml: {e}")))?;
     write_atomic(&dir.join("scene.toml"), toml.as_bytes())?;
+    write_atomic(&dir.join("stress.json"), stress_json(result).as_bytes())?;
     // The summary last: its presence says the other files are complete.
     write_atomic(&dir.join("summary.json"), summary.as_bytes())
 }

@@ -53,6 +53,16 @@ fn compare_writes_markdown_csv_and_json_with_one_row_per_combination() {
     let csv = std::fs::read_to_string(dir.join("compare.csv")).unwrap();
     assert_eq!(csv.lines().count(), 1 + 10);
     assert!(csv.starts_with("energy,solver,variant,stable,steps_completed,tip.ux"));
+    // Every row's tip curve side by side: 100 steps at frame_every 10 give 11 frames.
+    let curves = std::fs::read_to_string(dir.join("curves.csv")).unwrap();
+    assert_eq!(curves.lines().count(), 1 + 11);
+    let header: Vec<&str> = curves.lines().next().unwrap().split(',').collect();
+    assert_eq!(header.len(), 2 + 10 * 2);
+    assert_eq!(header[2], "stvk/explicit:tip.ux");
+    assert!(
+        header.contains(&"neo-hookean/pbd/10-it:tip.uy"),
+        "{header:?}"
+    );
     // Rows after the explicit one carry their distance from it.
     assert!(json["rows"][1]["probes"][0]["rms_vs_explicit"].is_number());
     assert!(

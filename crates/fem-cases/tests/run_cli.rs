@@ -49,11 +49,12 @@ fn listing(dir: &Path) -> Vec<String> {
     names
 }
 
-const OUTPUTS: [&str; 5] = [
+const OUTPUTS: [&str; 6] = [
     "frames.jsonl",
     "mesh.json",
     "probes.csv",
     "scene.toml",
+    "stress.json",
     "summary.json",
 ];
 
@@ -125,6 +126,24 @@ fn case_a_writes_every_output_in_contract_form() {
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(stdout.contains("probe tip"), "{stdout}");
     assert_eq!(listing(&out_dir), OUTPUTS, "no temporary file is left");
+    // stress.json: one value per triangle and per vertex, the peak matching the summary's
+    // final peak.
+    let stress = json(&out_dir.join("stress.json"));
+    let summary = json(&out_dir.join("summary.json"));
+    let per_element = stress["per_element"].as_array().unwrap();
+    assert_eq!(
+        per_element.len() as u64,
+        summary["triangles"].as_u64().unwrap()
+    );
+    assert_eq!(
+        stress["per_vertex"].as_array().unwrap().len() as u64,
+        summary["vertices"].as_u64().unwrap()
+    );
+    let peak = per_element
+        .iter()
+        .filter_map(Value::as_f64)
+        .fold(0.0, f64::max);
+    assert_eq!(peak, summary["final_max_von_mises"].as_f64().unwrap());
 
     // summary.json
     let s = json(&out_dir.join("summary.json"));
@@ -408,7 +427,13 @@ frames = false
     run_ok(&[arg(&dir.join("scenes/strip.toml"))], &first);
     assert_eq!(
         listing(&first),
-        ["mesh.json", "probes.csv", "scene.toml", "summary.json"],
+        [
+            "mesh.json",
+            "probes.csv",
+            "scene.toml",
+            "stress.json",
+            "summary.json"
+        ],
         "frames = false writes no frames.jsonl"
     );
     let s = json(&first.join("summary.json"));

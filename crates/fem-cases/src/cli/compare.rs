@@ -46,7 +46,8 @@ pub struct CompareArgs {
     /// Worker threads per run (default: all cores).
     #[arg(long)]
     pub threads: Option<usize>,
-    /// Write compare.md, compare.csv and compare.json here.
+    /// Write compare.md, compare.csv, compare.json and curves.csv (every row's probe curves)
+    /// here.
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
 }
@@ -111,8 +112,10 @@ pub fn run(args: &CompareArgs) -> Result<(), String> {
             .map_err(|e| e.to_string())?;
         write_atomic(&dir.join("compare.json"), table.to_json().as_bytes())
             .map_err(|e| e.to_string())?;
+        write_atomic(&dir.join("curves.csv"), table.to_curves_csv().as_bytes())
+            .map_err(|e| e.to_string())?;
         println!(
-            "wrote compare.md, compare.csv, compare.json in {}",
+            "wrote compare.md, compare.csv, compare.json, curves.csv in {}",
             dir.display()
         );
     }

@@ -146,7 +146,7 @@ pub fn run(args: &RunArgs) -> Result<(), String> {
         );
     }
     println!(
-        "wrote summary.json, probes.csv, mesh.json, scene.toml{} in {}",
+        "wrote summary.json, probes.csv, mesh.json, stress.json, scene.toml{} in {}",
         if scene.scene.output.frames {
             ", frames.jsonl"
         } else {
