@@ -6,56 +6,8 @@
 
 mod common;
 
-use common::{arg, fem2d, scratch};
+use common::{arg, fem2d, json, one_line_error, read, run_ok, scratch};
 use std::path::{Path, PathBuf};
-use std::process::Output;
-
-use serde_json::Value;
-
-/// Runs `fem2d run ARGS --out DIR -q` and checks it succeeded with nothing on stderr.
-fn run_ok(args: &[&str], dir: &Path) -> Output {
-    let mut all = vec!["run"];
-    all.extend(args);
-    all.extend(["--out", arg(dir), "-q"]);
-    let out = fem2d(&all);
-    assert!(
-        out.status.success(),
-        "{all:?} failed:\n{}\n{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    assert!(
-        out.stderr.is_empty(),
-        "{all:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    out
-}
-
-/// Runs `fem2d ARGS` expecting failure with exactly one `error: ` line on stderr; returns it.
-fn one_line_error(args: &[&str]) -> String {
-    let out = fem2d(args);
-    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
-    assert!(!out.status.success(), "{args:?} should fail: {stderr}");
-    let errors: Vec<&str> = stderr
-        .lines()
-        .filter(|l| l.starts_with("error: "))
-        .collect();
-    assert_eq!(errors.len(), 1, "{args:?}: {stderr}");
-    assert!(
-        stderr.lines().all(|l| l.starts_with("error: ")),
-        "{args:?}: {stderr}"
-    );
-    errors[0].to_owned()
-}
-
-fn read(path: &Path) -> String {
-    std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
-}
-
-fn json(path: &Path) -> Value {
-    serde_json::from_str(&read(path)).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
-}
 
 /// The rows of `probes.csv` (header dropped).
 fn rows(path: &Path) -> Vec<Vec<f64>> {

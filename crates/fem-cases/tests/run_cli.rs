@@ -5,39 +5,10 @@
 
 mod common;
 
-use common::{arg, fem2d, scratch};
+use common::{arg, fem2d, json, read, run_ok, scratch};
 use std::path::Path;
-use std::process::Output;
 
 use serde_json::Value;
-
-/// Runs `fem2d run ARGS --out DIR -q` and checks it succeeded with nothing on stderr.
-fn run_ok(args: &[&str], dir: &Path) -> Output {
-    let mut all = vec!["run"];
-    all.extend(args);
-    all.extend(["--out", arg(dir), "-q"]);
-    let out = fem2d(&all);
-    assert!(
-        out.status.success(),
-        "{all:?} failed:\n{}\n{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    assert!(
-        out.stderr.is_empty(),
-        "{all:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    out
-}
-
-fn read(path: &Path) -> String {
-    std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
-}
-
-fn json(path: &Path) -> Value {
-    serde_json::from_str(&read(path)).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
-}
 
 /// The names in `dir`, sorted.
 fn listing(dir: &Path) -> Vec<String> {
