@@ -83,6 +83,11 @@ pub trait Energy: Send + Sync + Clone + fmt::Debug {
 /// Clamp the eigenvalues of the symmetric part of `m` at zero and rebuild it.
 pub fn project_psd(m: &Mat4) -> Mat4 {
     let sym = (m + m.transpose()) * 0.5;
+    // Most elements are positive definite: a 4x4 Cholesky (a few dozen flops) proves it and
+    // returns the same matrix the eigen path would, without the iterative eigendecomposition.
+    if nalgebra::Cholesky::new(sym).is_some() {
+        return sym;
+    }
     let mut eig = SymmetricEigen::new(sym);
     if eig.eigenvalues.iter().all(|&l| l >= 0.0) {
         return sym;
