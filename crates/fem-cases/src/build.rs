@@ -184,7 +184,7 @@ pub fn build_model<E: Energy>(
 
 /// The model of the scene without its loads: no gravity and no traction (masses, boundary
 /// conditions, ground, obstacles and contact parameters as in [`build_model`]).
-pub fn build_unloaded_model<E: Energy>(
+fn build_unloaded_model<E: Energy>(
     scene: &LoadedScene,
     mesh: Mesh,
     energy: E,
@@ -279,7 +279,7 @@ pub fn build_unloaded_model<E: Energy>(
 
 /// Add the scene's loads to `model`: gravity and the `[[traction]]` entries (consistent nodal
 /// forces on the boundary edges whose two end vertices lie in each box).
-pub fn add_loads<E: Energy>(scene: &LoadedScene, model: &mut Model<E>) -> Result<(), CaseError> {
+fn add_loads<E: Energy>(scene: &LoadedScene, model: &mut Model<E>) -> Result<(), CaseError> {
     let s = &scene.scene;
     let err = solver_err(scene);
     model.set_gravity(v2(s.gravity)).map_err(&err)?;
@@ -303,12 +303,13 @@ pub fn add_loads<E: Energy>(scene: &LoadedScene, model: &mut Model<E>) -> Result
 
 /// The displacement each prescribed vertex has at the end of the run (`t = dt * steps`): its
 /// schedule's velocity times the part of `[0, dt * steps]` inside its window, the later of two
-/// regions holding a vertex winning (as in the model). Zero for every other vertex. The static
-/// solver moves prescribed vertices to this displacement, in proportion to the load factor.
+/// regions holding a vertex winning (as in the model), as `(vertex, displacement)` in vertex
+/// order. The static solver moves prescribed vertices to this displacement, in proportion to
+/// the load factor.
 pub fn prescribed_displacements(
     scene: &LoadedScene,
     rest: &[Vec2],
-) -> Result<Vec<Option<Vec2>>, CaseError> {
+) -> Result<Vec<(usize, Vec2)>, CaseError> {
     let s = &scene.scene;
     let err = solver_err(scene);
     let end_of_run = s.solver.dt * s.solver.steps as f64;
@@ -329,7 +330,11 @@ pub fn prescribed_displacements(
             out[v] = Some(u);
         }
     }
-    Ok(out)
+    Ok(out
+        .into_iter()
+        .enumerate()
+        .filter_map(|(v, u)| u.map(|u| (v, u)))
+        .collect())
 }
 
 /// The Newton settings of the scene (`solver.tolerance`, `solver.max_iterations`).
@@ -342,14 +347,12 @@ pub fn newton_params(scene: &LoadedScene) -> NewtonParams {
     }
 }
 
-/// The quasi-static solver's parameters for one load increment: the run loop steps the load
-/// factor itself (one increment per call, halving an increment that fails), so the solver gets
-/// one load step and no bisection of its own.
-pub fn static_increment_params(scene: &LoadedScene) -> StaticParams {
+/// The quasi-static solver's parameters (`solver.load_steps`, the Newton settings).
+pub fn static_params(scene: &LoadedScene) -> StaticParams {
     StaticParams {
-        load_steps: 1,
-        max_bisections: 0,
+        load_steps: scene.scene.solver.load_steps,
         newton: newton_params(scene),
+        ..StaticParams::default()
     }
 }
 

@@ -34,12 +34,12 @@ use fem_core::dispatch_energy;
 use fem_core::energy::Energy;
 use fem_core::math::{Real, Vec2};
 use fem_core::stress::{ElementStress, VonMisesFormula, populate_element_stress, vertex_average};
-use fem_solvers::{Model, SolverError, State, StaticParams, StaticSolver, Stepper};
+use fem_solvers::{Model, SolverError, State, StaticSolver, Stepper};
 use serde::{Deserialize, Serialize};
 
 use crate::build::{
-    AnyStepper, Probe, add_loads, build_mesh, build_model, build_stepper, build_unloaded_model,
-    energy, prescribed_displacements, static_increment_params, von_mises_formula,
+    AnyStepper, Probe, build_mesh, build_model, build_stepper, energy, prescribed_displacements,
+    static_params, von_mises_formula,
 };
 use crate::error::CaseError;
 use crate::scene::{LoadedScene, SolverKind};
@@ -339,23 +339,17 @@ fn run_with<E: Energy>(
     energy: E,
 ) -> Result<RunResult, CaseError> {
     let s = &scene.scene;
-    let (model, mut driver) = if s.solver.kind == SolverKind::Static {
-        let unloaded = build_unloaded_model(scene, mesh, energy)?;
-        let mut model = unloaded.clone();
-        add_loads(scene, &mut model)?;
-        let solver = StaticSolver::new(&model, static_increment_params(scene))
+    let model = build_model(scene, mesh, energy)?;
+    let mut driver = if s.solver.kind == SolverKind::Static {
+        let solver = StaticSolver::new(&model, static_params(scene))
             .map_err(|e| CaseError::Solver(format!("{}: {e}", scene.origin)))?;
         let prescribed = prescribed_displacements(scene, model.mesh().vertices())?;
-        let driver = Driver::Static {
+        Driver::Static {
             solver: Box::new(solver),
-            unloaded: Box::new(unloaded),
             prescribed,
-        };
-        (model, driver)
+        }
     } else {
-        let model = build_model(scene, mesh, energy)?;
-        let stepper = build_stepper(scene, &model)?;
-        (model, Driver::Steps(Box::new(stepper)))
+        Driver::Steps(Box::new(build_stepper(scene, &model)?))
     };
     let probes = crate::build::resolve_probes(scene, model.mesh());
     let time_step_warning = match &driver {
@@ -403,12 +397,8 @@ fn run_with<E: Energy>(
         Driver::Steps(stepper) => step_loop(
             scene, options, &model, stepper, &mut state, &mut rec, &probes,
         ),
-        Driver::Static {
-            solver,
-            unloaded,
-            prescribed,
-        } => static_loop(
-            scene, &model, unloaded, solver, prescribed, &mut state, &mut rec, &probes,
+        Driver::Static { solver, prescribed } => static_loop(
+            scene, &model, solver, prescribed, &mut state, &mut rec, &probes,
         ),
     };
     let outcome = match result {
@@ -545,12 +535,12 @@ fn run_with<E: Energy>(
 
 /// What advances the state: a time stepper, or the quasi-static solver with what the static
 /// loop needs (the model without loads, to scale them, and the prescribed displacements).
-enum Driver<E: Energy> {
+enum Driver {
     Steps(Box<AnyStepper>),
     Static {
         solver: Box<StaticSolver>,
-        unloaded: Box<Model<E>>,
-        prescribed: Vec<Option<Vec2>>,
+        /// `(vertex, displacement at the full load)` of the prescribed vertices.
+        prescribed: Vec<(usize, Vec2)>,
     },
 }
 
@@ -646,125 +636,62 @@ fn step_loop<E: Energy>(
     })
 }
 
-/// Most halvings of a load increment over a static run (the quasi-static solver's default).
-fn static_max_bisections() -> usize {
-    StaticParams::default().max_bisections
-}
-
-/// The model with every load (gravity and nodal forces of `full`) scaled by `factor`.
-fn scaled_model<E: Energy>(
-    unloaded: &Model<E>,
-    full: &Model<E>,
-    factor: Real,
-) -> Result<Model<E>, SolverError> {
-    let mut m = unloaded.clone();
-    m.set_gravity(factor * full.gravity())?;
-    for &(v, f) in full.external_forces() {
-        m.add_external_force(v as usize, factor * f)?;
-    }
-    Ok(m)
-}
-
-/// The static loop: the load factor goes from 0 to 1 in `solver.load_steps` equal increments
-/// (an increment that fails is halved), every converged increment a frame.
-#[allow(clippy::too_many_arguments)]
+/// The static run: [`StaticSolver::solve_with`] takes the load factor from 0 to 1 in
+/// `solver.load_steps` increments (halving one that fails), moving the prescribed vertices with
+/// it; every converged increment is a frame (`step` = increment, `time` = load factor).
 fn static_loop<E: Energy>(
     scene: &LoadedScene,
     model: &Model<E>,
-    unloaded: &Model<E>,
     solver: &mut StaticSolver,
-    prescribed: &[Option<Vec2>],
+    prescribed: &[(usize, Vec2)],
     state: &mut State,
     rec: &mut Recorder,
     probes: &[Probe],
 ) -> Result<Outcome, CaseError> {
-    let s = &scene.scene;
-    let solver_err = |e: SolverError| CaseError::Solver(format!("{}: {e}", scene.origin));
     let start = Instant::now();
     rec.record(model, state, probes, (0, 0.0))?;
-    let rest = model.mesh().vertices().to_vec();
-    let place = |state: &mut State, factor: Real| {
-        for (v, u) in prescribed.iter().enumerate() {
-            if let Some(u) = u {
-                state.x[v] = rest[v] + factor * u;
-            }
-        }
-    };
-    let mut stepping = Duration::ZERO;
-    let mut min_det_f = Real::INFINITY;
-    let mut inverted = 0usize;
-    let mut blow_up: Option<String> = None;
-    let mut newton_iterations = 0u64;
-    let mut final_residual = None;
+    let mut recording = Duration::ZERO;
+    let mut record_error = None;
     let mut done = 0u64;
-    let mut factor: Real = 0.0;
-    let mut increment = 1.0 / s.solver.load_steps as Real;
-    let mut halvings = 0usize;
-    while factor < 1.0 && blow_up.is_none() {
-        // The last increment lands on 1 exactly, whatever the rounding of the sum.
-        let next = if factor + increment > 1.0 - 1e-12 {
-            1.0
-        } else {
-            factor + increment
-        };
-        let loaded = scaled_model(unloaded, model, next).map_err(solver_err)?;
-        place(state, next);
-        let t0 = Instant::now();
-        let outcome = solver.solve(&loaded, state);
-        stepping += t0.elapsed();
-        match outcome {
-            Ok(report) => {
-                factor = next;
-                done += 1;
-                newton_iterations += report.iterations() as u64;
-                final_residual = Some(report.residual());
-                for r in &report.increments {
-                    min_det_f = min_det_f.min(r.min_det_f);
-                    inverted = inverted.max(r.inverted);
-                }
-                rec.record(model, state, probes, (done, factor))?;
-                if let Some(m) = rec.runaway.take() {
-                    blow_up = Some(format!("{}: {m}", scene.origin));
-                }
-            }
-            Err(e) => {
-                // The solver leaves the state as it was; put the prescribed vertices back.
-                place(state, factor);
-                let reason = match &e {
-                    SolverError::NotConverged {
-                        iterations,
-                        residual,
-                        ..
-                    } => {
-                        newton_iterations += *iterations as u64;
-                        format!(
-                            "Newton did not converge in {iterations} iterations (residual {residual:.4e} N); add load steps or raise max_iterations"
-                        )
-                    }
-                    other => other.to_string(),
-                };
-                if halvings >= static_max_bisections() {
-                    blow_up = Some(format!(
-                        "{}: load increment {} (load factor {factor} to {next}, after {halvings} halvings): {reason}",
-                        scene.origin,
-                        done + 1
-                    ));
-                } else {
-                    halvings += 1;
-                    increment *= 0.5;
-                }
-            }
+    let t0 = Instant::now();
+    let outcome = solver.solve_with(model, state, prescribed, |factor, st, _| {
+        let t = Instant::now();
+        done += 1;
+        if record_error.is_none() {
+            record_error = rec.record(model, st, probes, (done, factor)).err();
         }
+        recording += t.elapsed();
+    });
+    let stepping = t0.elapsed().saturating_sub(recording);
+    if let Some(e) = record_error {
+        return Err(e);
+    }
+    let report = solver.last_report();
+    let mut blow_up = outcome.err().map(|e| format!("{}: {e}", scene.origin));
+    if blow_up.is_none() {
+        blow_up = rec.runaway.take().map(|m| format!("{}: {m}", scene.origin));
     }
     Ok(Outcome {
         wall: start.elapsed(),
         stepping,
-        min_det_f,
-        inverted,
+        min_det_f: report
+            .increments
+            .iter()
+            .map(|r| r.min_det_f)
+            .fold(Real::INFINITY, Real::min),
+        inverted: report
+            .increments
+            .iter()
+            .map(|r| r.inverted)
+            .max()
+            .unwrap_or(0),
         blow_up,
         done,
-        newton_iterations,
-        final_residual,
+        newton_iterations: (report.iterations() + report.failed_iterations) as u64,
+        final_residual: report
+            .increments
+            .last()
+            .and_then(|r| r.residuals.last().copied()),
     })
 }
 

@@ -90,6 +90,22 @@ pub enum SolverError {
         /// Final residual, N.
         residual: Real,
     },
+    /// A load increment of the quasi-static solver failed after every allowed halving.
+    #[error(
+        "load increment {increment} (load factor {from} to {to}, after {halvings} halvings): {reason}; add load steps or raise max_iterations"
+    )]
+    LoadIncrement {
+        /// 1-based number of the increment that failed.
+        increment: usize,
+        /// Load factor of the last equilibrium.
+        from: Real,
+        /// Load factor the increment aimed at.
+        to: Real,
+        /// Halvings done before giving up.
+        halvings: usize,
+        /// Why the last attempt failed.
+        reason: String,
+    },
     /// A rigid body's pose or velocity became NaN or infinite.
     #[error("step {step}: rigid body of obstacles[{body}] became non-finite")]
     NonFiniteBody {

@@ -46,10 +46,12 @@ pub struct StaticReport {
     pub increments: Vec<NewtonReport>,
     /// Increments that failed and were halved.
     pub bisections: usize,
+    /// Newton iterations of the failed attempts.
+    pub failed_iterations: usize,
 }
 
 impl StaticReport {
-    /// Newton iterations over all increments.
+    /// Newton iterations over the converged increments.
     pub fn iterations(&self) -> usize {
         self.increments.iter().map(|r| r.iterations).sum()
     }
@@ -71,6 +73,7 @@ pub struct StaticSolver {
     load: Vec<Vec2>,
     scaled: Vec<Vec2>,
     backup: Vec<Vec2>,
+    report: StaticReport,
 }
 
 impl StaticSolver {
@@ -95,6 +98,7 @@ impl StaticSolver {
             load: vec![Vec2::zeros(); n],
             scaled: vec![Vec2::zeros(); n],
             backup: vec![Vec2::zeros(); n],
+            report: StaticReport::default(),
         })
     }
 
@@ -106,14 +110,55 @@ impl StaticSolver {
         state: &mut State,
     ) -> Result<StaticReport, SolverError> {
         state.check_matches(model)?;
+        self.backup.copy_from_slice(&state.x);
+        match self.solve_with(model, state, &[], |_, _, _| {}) {
+            Ok(report) => Ok(report),
+            Err(e) => {
+                state.x.copy_from_slice(&self.backup);
+                Err(e)
+            }
+        }
+    }
+
+    /// [`StaticSolver::solve`], also moving kinematic vertices: vertex `v` of `displacements`
+    /// goes from its starting position to that plus the displacement in proportion to the load
+    /// factor (a prescribed stretch applied with the load). `on_increment(factor, state,
+    /// report)` is called after every converged increment, the state at that equilibrium. On
+    /// error the state holds the last converged increment; [`StaticSolver::last_report`] tells
+    /// what was done, failed attempts included.
+    pub fn solve_with<E: Energy>(
+        &mut self,
+        model: &Model<E>,
+        state: &mut State,
+        displacements: &[(usize, Vec2)],
+        mut on_increment: impl FnMut(Real, &State, &NewtonReport),
+    ) -> Result<StaticReport, SolverError> {
+        state.check_matches(model)?;
+        if let Some(&(v, _)) = displacements.iter().find(|(v, _)| *v >= state.x.len()) {
+            return Err(SolverError::VertexOutOfRange {
+                field: "static.displacements".into(),
+                index: v,
+                n_vertices: state.x.len(),
+            });
+        }
         external_load(model, &mut self.load);
+        let start: Vec<Vec2> = displacements.iter().map(|&(v, _)| state.x[v]).collect();
+        let place = |x: &mut [Vec2], factor: Real| {
+            for (&(v, u), x0) in displacements.iter().zip(&start) {
+                x[v] = x0 + factor * u;
+            }
+        };
+        self.report = StaticReport::default();
         let mut x = state.x.clone();
-        let mut report = StaticReport::default();
         let mut factor = 0.0;
         let mut increment = 1.0 / self.params.load_steps as Real;
-        let mut halvings = 0;
         while factor < 1.0 {
-            let next = (factor + increment).min(1.0);
+            // The last increment lands on 1 exactly, whatever the rounding of the sum.
+            let next = if factor + increment > 1.0 - 1e-12 {
+                1.0
+            } else {
+                factor + increment
+            };
             for (s, l) in self.scaled.iter_mut().zip(&self.load) {
                 *s = next * l;
             }
@@ -125,36 +170,51 @@ impl StaticSolver {
                 target: &[],
                 load: &self.scaled,
             };
-            self.backup.copy_from_slice(&x);
+            place(&mut x, next);
             let outcome = self
                 .solver
                 .minimise(&potential, &mut x, &self.params.newton);
             match outcome {
                 Ok(r) if r.converged && r.min_det_f.is_finite() => {
                     factor = next;
-                    report.load_factors.push(factor);
-                    report.increments.push(r);
+                    state.x.copy_from_slice(&x);
+                    state.v.iter_mut().for_each(|v| *v = Vec2::zeros());
+                    on_increment(factor, state, &r);
+                    self.report.load_factors.push(factor);
+                    self.report.increments.push(r);
                 }
                 other => {
-                    x.copy_from_slice(&self.backup);
-                    if halvings >= self.params.max_bisections {
-                        return Err(match other {
-                            Err(e) => e,
-                            Ok(r) => SolverError::NotConverged {
-                                step: report.load_factors.len() as u64,
-                                iterations: r.iterations,
-                                residual: *r.residuals.last().unwrap_or(&Real::NAN),
-                            },
+                    x.copy_from_slice(&state.x);
+                    let reason = match other {
+                        Err(e) => e.to_string(),
+                        Ok(r) => {
+                            self.report.failed_iterations += r.iterations;
+                            format!(
+                                "Newton did not converge in {} iterations (residual {:.4e} N)",
+                                r.iterations,
+                                r.residuals.last().copied().unwrap_or(Real::NAN)
+                            )
+                        }
+                    };
+                    if self.report.bisections >= self.params.max_bisections {
+                        return Err(SolverError::LoadIncrement {
+                            increment: self.report.load_factors.len() + 1,
+                            from: factor,
+                            to: next,
+                            halvings: self.report.bisections,
+                            reason,
                         });
                     }
-                    halvings += 1;
-                    report.bisections += 1;
+                    self.report.bisections += 1;
                     increment *= 0.5;
                 }
             }
         }
-        state.x = x;
-        state.v.iter_mut().for_each(|v| *v = Vec2::zeros());
-        Ok(report)
+        Ok(self.report.clone())
+    }
+
+    /// What the last solve did (also after an error).
+    pub fn last_report(&self) -> &StaticReport {
+        &self.report
     }
 }
