@@ -157,19 +157,21 @@ impl Stepper for ImplicitStepper {
             target: &self.target,
             load: &self.load,
         };
-        let start_ok =
-            fem_core::assembly::elastic_energy_serial(model.mesh(), model.energy(), &self.x_new)
-                .is_finite();
-        if !start_ok {
-            // Start from the current positions (valid), kinematic vertices moved.
-            self.x_new.copy_from_slice(&state.x);
-            model
-                .kinematics()
-                .apply(t, h, &state.x, &mut self.x_new, &mut self.v_new);
-        }
-        let report = self
-            .solver
-            .minimise(&potential, &mut self.x_new, &self.params.newton)?;
+        // When the prediction inverts an element the energy forbids, start from the current
+        // positions (valid), kinematic vertices moved.
+        let kinematics = model.kinematics();
+        let current = |x: &mut [Vec2]| {
+            x.copy_from_slice(&state.x);
+            for (k, v) in kinematics.vertices().enumerate() {
+                x[v] = state.x[v] + h * kinematics.velocity(k, t, h);
+            }
+        };
+        let report = self.solver.minimise(
+            &potential,
+            &mut self.x_new,
+            &self.params.newton,
+            Some(&current),
+        )?;
         for ((v, xn), x) in self.v_new.iter_mut().zip(&self.x_new).zip(&state.x) {
             *v = (xn - x) / h * self.decay;
         }

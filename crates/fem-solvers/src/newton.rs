@@ -83,6 +83,9 @@ impl NewtonParams {
     }
 }
 
+/// Rewrites the unknowns to a safe starting point (see [`NewtonSolver::minimise`]).
+pub(crate) type Restart<'a> = &'a dyn Fn(&mut [Vec2]);
+
 /// What one Newton solve did.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct NewtonReport {
@@ -414,15 +417,22 @@ impl NewtonSolver {
         llt.solve_in_place_with_conj(Conj::No, rhs, Par::Seq, MemStack::new(&mut self.mem));
     }
 
-    /// Minimise the potential from `x` (kinematic vertices already placed), in place.
+    /// Minimise the potential from `x` (kinematic vertices already placed), in place. When the
+    /// potential is not finite at `x` (an inverted element under an energy that forbids it),
+    /// `fallback` rewrites `x` to a safe start before giving up.
     pub(crate) fn minimise<E: Energy>(
         &mut self,
         p: &Potential<'_, E>,
         x: &mut [Vec2],
         params: &NewtonParams,
+        fallback: Option<Restart<'_>>,
     ) -> Result<NewtonReport, SolverError> {
         let mut report = NewtonReport::default();
         let (mut phi, mut magnitude) = p.value(x, &mut self.scratch);
+        if let (false, Some(restart)) = (phi.is_finite(), fallback) {
+            restart(x);
+            (phi, magnitude) = p.value(x, &mut self.scratch);
+        }
         if !phi.is_finite() {
             return Err(SolverError::invalid(
                 format!("{}.initial_guess", self.prefix),

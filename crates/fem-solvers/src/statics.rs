@@ -173,7 +173,7 @@ impl StaticSolver {
             place(&mut x, next);
             let outcome = self
                 .solver
-                .minimise(&potential, &mut x, &self.params.newton);
+                .minimise(&potential, &mut x, &self.params.newton, None);
             match outcome {
                 Ok(r) if r.converged && r.min_det_f.is_finite() => {
                     factor = next;

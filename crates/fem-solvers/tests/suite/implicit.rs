@@ -236,3 +236,31 @@ fn implicit_is_bit_identical_across_thread_counts() {
         assert!(run(threads) == one, "{threads} threads differ");
     }
 }
+
+/// A prediction `x + h v` that mirrors the body (every vertex thrown across the vertical line
+/// through its centre, `det F = -2`) is infinite for Neo-Hookean: the step restarts from the current positions, the line
+/// search keeps every trial uninverted, and the step ends with no inverted element.
+#[test]
+fn an_inverting_prediction_restarts_from_the_current_positions() {
+    let model = free_beam(NeoHookean::new(lame(1e4)), 20, 4);
+    let mut s = State::at_rest(&model);
+    for (v, x) in s.v.iter_mut().zip(&s.x) {
+        *v = fem_core::math::Vec2::new(-300.0 * (x.x - 2.5), 0.0);
+    }
+    let dt = 1e-2;
+    // The prediction really is inverted: its x coordinates are 2.5 - 2 (x - 2.5).
+    let predicted: Vec<_> = s.x.iter().zip(&s.v).map(|(x, v)| x + dt * v).collect();
+    let psi = fem_core::assembly::elastic_energy_serial(model.mesh(), model.energy(), &predicted);
+    assert!(psi.is_infinite(), "{psi}");
+    let mut im = ImplicitStepper::new(
+        &model,
+        ImplicitParams {
+            dt,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let r = im.step(&model, &mut s).unwrap();
+    assert_eq!(r.inverted, 0);
+    assert!(r.min_det_f > 0.0, "{}", r.min_det_f);
+}
