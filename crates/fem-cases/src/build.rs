@@ -197,7 +197,6 @@ fn build_unloaded_model<E: Energy>(
         (None, None) => unreachable!("validated: one of total_mass and density is given"),
     }
     .map_err(&err)?;
-    model.set_gravity(Vec2::zeros()).map_err(&err)?;
     for (i, r) in s.pinned.iter().enumerate() {
         let region = Region::in_box(v2(r.min), v2(r.max));
         if region
@@ -446,7 +445,7 @@ impl Stepper for AnyStepper {
 }
 
 /// The scene's stepper for `model`. A `static` scene has no stepper (the run loop drives the
-/// quasi-static solver, see [`static_increment_params`]): asking for one is an error.
+/// quasi-static solver with [`static_params`]): asking for one is an error.
 pub fn build_stepper<E: Energy>(
     scene: &LoadedScene,
     model: &Model<E>,
