@@ -9,7 +9,7 @@
 //! 2. apply `--set key=value` overrides ([`apply_override`]), the key being the value's path in
 //!    the file (`material.youngs_modulus`, `obstacles.0.mass`);
 //! 3. deserialize into [`Scene`] (unknown fields are errors, so a typo never passes silently)
-//!    and [`Scene::validate`] every value (finite, positive, in range).
+//!    and [`LoadedScene::validate`] every value (finite, positive, in range).
 
 use std::fmt;
 use std::path::{Path, PathBuf};
