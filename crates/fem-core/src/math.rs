@@ -34,7 +34,7 @@ pub fn vec(a: &Mat2) -> Vec4 {
     Vec4::new(a[(0, 0)], a[(1, 0)], a[(0, 1)], a[(1, 1)])
 }
 
-/// Inverse of [`vec`].
+/// Inverse of [`vec()`].
 #[inline]
 pub fn unvec(v: &Vec4) -> Mat2 {
     Mat2::new(v[0], v[2], v[1], v[3])
