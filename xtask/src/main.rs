@@ -13,6 +13,8 @@
 //!   thread, best of 3, into `docs/bench-cases.md` and `docs/bench-cases.json`.
 //! - `cargo xtask stability`: the stability and accuracy maps of every energy x solver
 //!   (`docs/stability.md`, with SVG plots in `docs/figures/`).
+//! - `cargo xtask figures`: the paper's Figures 1-5 and the plots into `docs/figures/`
+//!   (`fem2d figures`).
 //! - `cargo xtask goldens`: regenerate `fixtures/goldens/case-{a,b,c,d}.json`, checked by
 //!   `crates/fem-cases/tests/goldens.rs`.
 //!
@@ -20,6 +22,7 @@
 //! release `fem2d` binary as a subprocess and reads its JSON.
 
 mod bench_cases;
+mod figures;
 mod goldens;
 mod stability;
 mod svg;
@@ -44,6 +47,8 @@ tasks:
   stability            the stability map (largest stable dt against E) and the accuracy map
                        (error against cost) of every energy x solver, into docs/stability.md
                        and docs/figures/{stability,accuracy}-map.svg
+  figures              the paper's Figures 1-5, the probe curves and the case B stability
+                       map (PNG and SVG), from `fem2d figures`, into docs/figures/
   goldens              regenerate fixtures/goldens/case-{a,b,c,d}.json (checked by
                        cargo test -p fem-cases --test goldens)";
 
@@ -88,6 +93,7 @@ fn run(args: &[String]) -> Result<(), String> {
         Some("stability") => stability::run(&rest),
         Some("bench-cases") => bench_cases::run(&rest),
         Some("goldens") => goldens::run(&rest),
+        Some("figures") => figures::run(&rest),
         Some("help" | "-h" | "--help") => {
             println!("{USAGE}");
             Ok(())

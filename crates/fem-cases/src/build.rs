@@ -69,35 +69,10 @@ pub fn build_mesh(scene: &LoadedScene) -> Result<Mesh, CaseError> {
             let path = scene.resolve(spec.path.as_deref().unwrap_or("".as_ref()));
             fem_mesh::io::read_mesh_json(&path).map_err(mesh_err)?
         }
-        kind @ (MeshKind::Model | MeshKind::Body) => {
-            let mut surface = if kind == MeshKind::Model {
-                let path = scene.resolve(spec.path.as_deref().unwrap_or("".as_ref()));
-                let options = fem_mesh::load::LoadOptions {
-                    groups: spec.groups.clone().unwrap_or_default(),
-                };
-                fem_mesh::load::load_model(&path, &options).map_err(mesh_err)?
-            } else {
-                fem_mesh::body::human_body()
-            };
-            surface.scale(spec.scale.unwrap_or(1.0));
-            let (lo, hi) = surface.bounds().ok_or_else(|| {
-                CaseError::Mesh(format!("{}: mesh: the model has no vertex", scene.origin))
-            })?;
-            let params = PipelineParams {
-                camera: preset_camera(spec.view.unwrap_or_default(), lo, hi),
-                alpha: fem_mesh::alpha::AlphaParams {
-                    radius: spec.alpha,
-                    ..Default::default()
-                },
-                epsilon: spec.epsilon,
-                triangulate: TriangulateParams {
-                    max_area: spec.max_area,
-                    min_angle_deg: spec.min_angle.unwrap_or(25.0),
-                    ..Default::default()
-                },
-                ..PipelineParams::default()
-            };
-            mesh_surface(surface, &params).map_err(mesh_err)?.mesh
+        MeshKind::Model | MeshKind::Body => {
+            mesh_pipeline(scene)?
+                .expect("a model or body mesh goes through the pipeline")
+                .mesh
         }
     };
     place(&mut mesh2, spec.rotate_deg.unwrap_or(0.0), spec.align_min);
@@ -113,6 +88,47 @@ pub fn build_mesh(scene: &LoadedScene) -> Result<Mesh, CaseError> {
         .collect();
     Mesh::new(vertices, triangles)
         .map_err(|e| CaseError::Mesh(format!("{}: mesh: {e}", scene.origin)))
+}
+
+/// The mesh pipeline's output (every stage, for Figure 1) for a scene whose mesh comes from a
+/// 3D model or the built-in body, before the scene's rotation and alignment; `None` for the
+/// other mesh kinds.
+pub fn mesh_pipeline(
+    scene: &LoadedScene,
+) -> Result<Option<fem_mesh::pipeline::PipelineOutput>, CaseError> {
+    let spec = &scene.scene.mesh;
+    let mesh_err = |e: fem_mesh::MeshError| CaseError::Mesh(format!("{}: mesh: {e}", scene.origin));
+    let kind = spec.kind.unwrap_or(MeshKind::Rectangle);
+    let mut surface = match kind {
+        MeshKind::Model => {
+            let path = scene.resolve(spec.path.as_deref().unwrap_or("".as_ref()));
+            let options = fem_mesh::load::LoadOptions {
+                groups: spec.groups.clone().unwrap_or_default(),
+            };
+            fem_mesh::load::load_model(&path, &options).map_err(mesh_err)?
+        }
+        MeshKind::Body => fem_mesh::body::human_body(),
+        MeshKind::Rectangle | MeshKind::File => return Ok(None),
+    };
+    surface.scale(spec.scale.unwrap_or(1.0));
+    let (lo, hi) = surface.bounds().ok_or_else(|| {
+        CaseError::Mesh(format!("{}: mesh: the model has no vertex", scene.origin))
+    })?;
+    let params = PipelineParams {
+        camera: preset_camera(spec.view.unwrap_or_default(), lo, hi),
+        alpha: fem_mesh::alpha::AlphaParams {
+            radius: spec.alpha,
+            ..Default::default()
+        },
+        epsilon: spec.epsilon,
+        triangulate: TriangulateParams {
+            max_area: spec.max_area,
+            min_angle_deg: spec.min_angle.unwrap_or(25.0),
+            ..Default::default()
+        },
+        ..PipelineParams::default()
+    };
+    mesh_surface(surface, &params).map(Some).map_err(mesh_err)
 }
 
 /// Rotate by `deg` degrees counter-clockwise about the origin, then translate the bounding

@@ -25,6 +25,9 @@ pub struct CompareSpec {
     pub xpbd_forms: Vec<XpbdFormName>,
     /// Worker threads per run.
     pub threads: Option<usize>,
+    /// Keep each row's run, with every `n`-th frame as a snapshot, in [`Comparison::runs`]
+    /// (for pictures). `None`: keep nothing.
+    pub snapshot_every: Option<usize>,
 }
 
 /// One combination's result.
@@ -73,7 +76,7 @@ pub struct ProbeCell {
 }
 
 /// The comparison of one scene.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct Comparison {
     /// Scene name.
     pub scene: String,
@@ -89,6 +92,10 @@ pub struct Comparison {
     /// the displacement at each frame (m). Empty for rows that could not run.
     #[serde(skip)]
     pub curves: Vec<Curves>,
+    /// Each row's run when [`CompareSpec::snapshot_every`] is set (`None` for rows that could
+    /// not run); empty otherwise.
+    #[serde(skip)]
+    pub runs: Vec<Option<RunResult>>,
 }
 
 /// The probe curves of one comparison row.
@@ -110,6 +117,7 @@ pub fn compare(
     let mut rows = Vec::new();
     let mut header = None;
     let mut curves = Vec::new();
+    let mut runs = Vec::new();
     for &energy in &spec.energies {
         let mut explicit: Option<RunResult> = None;
         for &solver in &spec.solvers {
@@ -124,6 +132,7 @@ pub fn compare(
                         &scene,
                         &RunOptions {
                             threads: spec.threads,
+                            snapshot_every: spec.snapshot_every,
                             ..RunOptions::default()
                         },
                     )
@@ -180,6 +189,9 @@ pub fn compare(
                             real_time_factor: s.real_time_factor,
                             error: s.blow_up_message.clone(),
                         };
+                        if spec.snapshot_every.is_some() {
+                            runs.push(Some(result.clone()));
+                        }
                         if solver == SolverKind::Explicit && explicit.is_none() && !s.blew_up {
                             explicit = Some(result);
                         }
@@ -187,6 +199,9 @@ pub fn compare(
                     }
                     Err(e) => {
                         curves.push(Curves::default());
+                        if spec.snapshot_every.is_some() {
+                            runs.push(None);
+                        }
                         CompareRow {
                             energy: energy.name().into(),
                             solver: solver.name().into(),
@@ -217,6 +232,7 @@ pub fn compare(
         steps,
         rows,
         curves,
+        runs,
     })
 }
 

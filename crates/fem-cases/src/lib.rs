@@ -13,7 +13,11 @@
 //! - [`cases`]: the built-in cases A-D (`fixtures/scenes/`);
 //! - [`compare`]: the energy x solver matrix on one scene;
 //! - [`sweep`]: parameter sweeps split into shards, and their merge;
-//! - [`table1`]: the paper's Table 1 regenerated, and the calibration scan behind its setting.
+//! - [`table1`]: the paper's Table 1 regenerated, and the calibration scan behind its setting;
+//! - [`pictures`]: a run's frames as PNG stress maps and animated GIFs, probe curves as charts
+//!   (drawn by `fem-render`);
+//! - [`figures`]: the paper's Figures 1-5 and the plots, regenerated from the built-in cases;
+//! - [`report`]: `fem2d report`, one self-contained HTML page with all of it.
 //!
 //! ```
 //! use fem_cases::{cases::load_case, run::{run_scene, RunOptions}};
@@ -28,6 +32,9 @@ pub mod build;
 pub mod cases;
 pub mod compare;
 pub mod error;
+pub mod figures;
+pub mod pictures;
+pub mod report;
 pub mod run;
 pub mod scene;
 pub mod sweep;

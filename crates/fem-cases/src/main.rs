@@ -28,6 +28,10 @@ enum Command {
     Merge(Box<cli::sweep::MergeArgs>),
     /// Turn a 3D model (OBJ, STL, PLY or the built-in body) into a 2D FEM mesh.
     Mesh(Box<cli::mesh::MeshArgs>),
+    /// Run cases A-D and write one self-contained HTML report (tables, figures, curves, animations).
+    Report(Box<cli::report::ReportArgs>),
+    /// Regenerate the paper's figures 1-5 and the plots (PNG and SVG).
+    Figures(Box<cli::report::FiguresArgs>),
 }
 
 fn main() -> std::process::ExitCode {
@@ -54,6 +58,8 @@ fn main() -> std::process::ExitCode {
         Command::Sweep(a) => cli::sweep::run_sweep(&a),
         Command::Merge(a) => cli::sweep::run_merge(&a),
         Command::Mesh(mesh) => cli::mesh::run(&mesh),
+        Command::Report(a) => cli::report::run_report(&a),
+        Command::Figures(a) => cli::report::run_figures(&a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

@@ -68,6 +68,31 @@ pub struct RunOptions {
     pub threads: Option<usize>,
     /// Draw a progress bar on standard error (only when it is a terminal).
     pub progress: bool,
+    /// Keep every `n`-th recorded frame in memory as a [`Snapshot`] (for pictures and
+    /// animations), and always the last one. `None`: keep none.
+    pub snapshot_every: Option<usize>,
+    /// Also write the recorded frames as VTK files, `vtk/run.pvd` and one `vtk/run_NNNNNN.vtu`
+    /// per frame, in the output directory (ignored without one).
+    pub vtk: bool,
+}
+
+/// One recorded frame kept in memory (see [`RunOptions::snapshot_every`]).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Snapshot {
+    /// Step number (load increment for a static run).
+    pub step: u64,
+    /// Time, s (load factor for a static run).
+    pub time: f64,
+    /// Vertex positions, m.
+    pub positions: Vec<[f64; 2]>,
+    /// Vertex velocities, m/s (zero for a static run).
+    pub velocities: Vec<[f64; 2]>,
+    /// Per-element von Mises stress, Pa (NaN where undefined, e.g. inverted elements).
+    pub von_mises: Vec<f64>,
+    /// Per-element det F.
+    pub det_f: Vec<f64>,
+    /// Obstacle polygons, m.
+    pub obstacles: Vec<Vec<[f64; 2]>>,
 }
 
 /// Probe statistics in the summary.
@@ -193,6 +218,9 @@ pub struct RunResult {
     pub final_vertex_von_mises: Vec<f64>,
     /// Obstacle polygons at the last recorded frame, m.
     pub final_obstacles: Vec<Vec<[f64; 2]>>,
+    /// Frames kept in memory ([`RunOptions::snapshot_every`]), in time order; the last one is
+    /// the last recorded frame.
+    pub snapshots: Vec<Snapshot>,
 }
 
 impl RunResult {
@@ -234,6 +262,17 @@ struct Recorder {
     max_vm: (f64, u64, usize, [f64; 2]),
     body_size: f64,
     runaway: Option<String>,
+    /// Snapshot cadence (in recorded frames) and the frames kept so far.
+    snapshot_every: Option<usize>,
+    snapshots: Vec<Snapshot>,
+    /// The latest recorded frame when it is not in `snapshots` (kept so the last frame is).
+    latest: Option<Snapshot>,
+    vtk: Option<fem_render::vtk::PvdWriter>,
+    /// Scratch for the VTK point data.
+    scratch: [Vec<[f64; 2]>; 3],
+    scratch_det_f: Vec<f64>,
+    scratch_von_mises: Vec<f64>,
+    triangles: Vec<[usize; 3]>,
 }
 
 struct FrameWriter {
@@ -328,7 +367,85 @@ impl Recorder {
                 .write_all(w.line.as_bytes())
                 .map_err(|e| CaseError::Io(format!("{}: {e}", w.tmp.display())))?;
         }
+        if let Some(every) = self.snapshot_every {
+            let keep = (self.frame_times.len() - 1) % every.max(1) == 0;
+            let mut snap = self.latest.take().unwrap_or_default();
+            snap.step = step;
+            snap.time = time;
+            snap.positions.clear();
+            snap.positions.extend(state.x.iter().map(|p| [p.x, p.y]));
+            snap.velocities.clear();
+            snap.velocities.extend(state.v.iter().map(|p| [p.x, p.y]));
+            snap.von_mises.clone_from(&self.von_mises);
+            snap.det_f.clear();
+            snap.det_f.extend(self.stress.iter().map(|s| s.det_f));
+            snap.obstacles.clear();
+            snap.obstacles.extend(
+                model
+                    .obstacles()
+                    .iter()
+                    .zip(&state.bodies)
+                    .map(|(o, b)| o.world_polygon(b).iter().map(|p| [p.x, p.y]).collect()),
+            );
+            if keep {
+                self.snapshots.push(snap);
+            } else {
+                self.latest = Some(snap);
+            }
+        }
+        if let Some(vtk) = &mut self.vtk {
+            use fem_render::vtk::{DataArray, VtkFrame};
+            let [u, v, positions] = &mut self.scratch;
+            u.clear();
+            u.extend(
+                state
+                    .x
+                    .iter()
+                    .zip(mesh.vertices())
+                    .map(|(x, x0)| [x.x - x0.x, x.y - x0.y]),
+            );
+            v.clear();
+            v.extend(state.v.iter().map(|p| [p.x, p.y]));
+            positions.clear();
+            positions.extend(state.x.iter().map(|p| [p.x, p.y]));
+            let det_f = &mut self.scratch_det_f;
+            det_f.clear();
+            det_f.extend(self.stress.iter().map(|s| s.det_f));
+            // VTK's ASCII readers cannot read NaN: an element whose stress is undefined
+            // (inverted under a log-barrier energy; det_F <= 0 there) is written as -1, a value
+            // von Mises stress never takes.
+            let vm = &mut self.scratch_von_mises;
+            vm.clear();
+            vm.extend(
+                self.von_mises
+                    .iter()
+                    .map(|&v| if v.is_finite() { v } else { -1.0 }),
+            );
+            let frame = VtkFrame {
+                positions,
+                triangles: &self.triangles,
+                point_data: vec![
+                    ("displacement", DataArray::Vectors(u)),
+                    ("velocity", DataArray::Vectors(v)),
+                ],
+                cell_data: vec![
+                    ("von_mises", DataArray::Scalars(vm)),
+                    ("det_F", DataArray::Scalars(det_f)),
+                ],
+            };
+            vtk.add(time, &frame)
+                .map_err(|e| CaseError::Io(e.to_string()))?;
+        }
         Ok(())
+    }
+
+    /// The kept snapshots, with the last recorded frame appended if it was not kept.
+    fn take_snapshots(&mut self) -> Vec<Snapshot> {
+        let mut out = std::mem::take(&mut self.snapshots);
+        if let Some(last) = self.latest.take() {
+            out.push(last);
+        }
+        out
     }
 }
 
@@ -392,6 +509,25 @@ fn run_with<E: Energy>(
         max_vm: (f64::NEG_INFINITY, 0, 0, [f64::NAN; 2]),
         body_size: (hi - lo).norm().max(1e-12),
         runaway: None,
+        snapshot_every: options.snapshot_every,
+        snapshots: Vec::new(),
+        latest: None,
+        vtk: match &options.out_dir {
+            Some(dir) if options.vtk => Some(
+                fem_render::vtk::PvdWriter::new(&dir.join("vtk"), "run")
+                    .map_err(|e| CaseError::Io(e.to_string()))?,
+            ),
+            _ => None,
+        },
+        scratch: [Vec::new(), Vec::new(), Vec::new()],
+        scratch_det_f: Vec::new(),
+        scratch_von_mises: Vec::new(),
+        triangles: model
+            .mesh()
+            .triangles()
+            .iter()
+            .map(|t| t.map(|i| i as usize))
+            .collect(),
     };
     let result = match &mut driver {
         Driver::Steps(stepper) => step_loop(
@@ -502,8 +638,10 @@ fn run_with<E: Energy>(
         final_residual,
         version: env!("CARGO_PKG_VERSION").to_owned(),
     };
+    let snapshots = rec.take_snapshots();
     let result = RunResult {
         summary,
+        snapshots,
         rest: mesh.vertices().iter().map(|p| [p.x, p.y]).collect(),
         triangles: mesh.triangles().to_vec(),
         final_positions,
@@ -527,6 +665,9 @@ fn run_with<E: Energy>(
             drop(w.file);
             std::fs::rename(&w.tmp, &w.dest)
                 .map_err(|e| CaseError::Io(format!("{}: {e}", w.dest.display())))?;
+        }
+        if let Some(vtk) = rec.vtk.take() {
+            vtk.finish().map_err(|e| CaseError::Io(e.to_string()))?;
         }
         write_outputs(scene, &result, dir)?;
     }

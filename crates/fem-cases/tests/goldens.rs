@@ -36,6 +36,7 @@ fn current(case: &str) -> Value {
             out_dir: None,
             threads: Some(1),
             progress: false,
+            ..RunOptions::default()
         },
     )
     .unwrap_or_else(|e| panic!("{case}: {e}"));

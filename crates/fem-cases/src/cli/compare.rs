@@ -93,6 +93,7 @@ pub fn run(args: &CompareArgs) -> Result<(), String> {
             })
             .collect(),
         threads: args.threads,
+        snapshot_every: None,
     };
     let load = |extra: &[String]| {
         let mut o = extra.to_vec();

@@ -2,6 +2,7 @@
 
 pub mod compare;
 pub mod mesh;
+pub mod report;
 pub mod run;
 pub mod sweep;
 pub mod table1;

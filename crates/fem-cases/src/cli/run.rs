@@ -1,10 +1,12 @@
 //! `fem2d run`: one scene (a built-in case or a scene file) under one energy and solver; writes
-//! `summary.json`, `probes.csv`, `frames.jsonl`, `mesh.json` and `scene.toml` into `--out`.
+//! `summary.json`, `probes.csv`, `frames.jsonl`, `mesh.json` and `scene.toml` into `--out`, and
+//! on request `final.png`, `animation.gif` and VTK files (`vtk/run.pvd`).
 
 use std::path::PathBuf;
 
 use clap::Args;
 use fem_cases::cases::load_case_or_file;
+use fem_cases::pictures::{FieldKind, FramePicture, GifOptions, shared_range, style, write_gif};
 use fem_cases::run::{RunOptions, run_scene};
 
 /// Options shared by every command that loads a scene.
@@ -47,6 +49,29 @@ pub struct RunArgs {
     /// No progress bar.
     #[arg(long, short = 'q')]
     pub quiet: bool,
+    /// Also write `final.png`: the last frame coloured by --field.
+    #[arg(long)]
+    pub png: bool,
+    /// Also write `animation.gif`: the recorded frames (every --gif-every-th) coloured by
+    /// --field, on one colour scale and one window for the whole run.
+    #[arg(long)]
+    pub gif: bool,
+    /// Put every N-th recorded frame in the GIF (default: as many as keep it under 120 frames;
+    /// frames are recorded every `output.frame_every` steps).
+    #[arg(long, value_name = "N")]
+    pub gif_every: Option<usize>,
+    /// Delay between GIF frames, milliseconds (rounded to hundredths of a second).
+    #[arg(long, value_name = "MS", default_value_t = 50)]
+    pub gif_delay_ms: u32,
+    /// Field of --png and --gif: von-mises (kPa, per element), displacement (mm, per vertex),
+    /// det-f (per element).
+    #[arg(long, default_value = "von-mises")]
+    pub field: String,
+    /// Also write the recorded frames as VTK for ParaView: `vtk/run.pvd` and one
+    /// `vtk/run_NNNNNN.vtu` per frame (displacement and velocity per vertex, von Mises and
+    /// det F per element).
+    #[arg(long)]
+    pub vtk: bool,
 }
 
 /// The overrides of the common flags, then the user's `--set`s.
@@ -83,16 +108,89 @@ pub fn run(args: &RunArgs) -> Result<(), String> {
         args.steps,
         &args.scene.set,
     );
+    let field: FieldKind = args.field.parse().map_err(|e| format!("--field: {e}"))?;
+    if args.gif_every == Some(0) {
+        return Err("--gif-every 0: must be >= 1".into());
+    }
+    let delay = (args.gif_delay_ms as f64 / 10.0).round();
+    if args.gif && !(1.0..=65535.0).contains(&delay) {
+        return Err(format!(
+            "--gif-delay-ms {}: must be between 10 and 655350",
+            args.gif_delay_ms
+        ));
+    }
     let scene = load_case_or_file(&args.scene.scene, &overrides).map_err(|e| e.to_string())?;
+    let s = &scene.scene;
+    // Frames recorded by the run: the first, one every `frame_every` steps, and the last.
+    let recorded = if s.solver.kind == fem_cases::scene::SolverKind::Static {
+        s.solver.load_steps as u64 + 1
+    } else {
+        s.solver.steps / s.output.frame_every.max(1) + 2
+    };
+    let gif_every = args
+        .gif_every
+        .unwrap_or_else(|| recorded.div_ceil(120).max(1) as usize);
+    let snapshot_every = if args.gif {
+        Some(gif_every)
+    } else if args.png {
+        Some(usize::MAX)
+    } else {
+        None
+    };
     let result = run_scene(
         &scene,
         &RunOptions {
             out_dir: Some(args.out.clone()),
             threads: args.threads,
             progress: !args.quiet,
+            snapshot_every,
+            vtk: args.vtk,
         },
     )
     .map_err(|e| e.to_string())?;
+    let mut pictures = Vec::new();
+    let title = format!(
+        "{}: {} / {}",
+        result.summary.scene, result.summary.energy, result.summary.solver
+    );
+    let drawable = !result.summary.blew_up;
+    let ground = scene.scene.ground.as_ref().and_then(|g| g.height);
+    if args.png && drawable {
+        let last = result
+            .snapshots
+            .last()
+            .ok_or("the run recorded no frame to draw")?;
+        let mut picture = FramePicture::new(&result, last, field, "");
+        if let Some(y) = ground {
+            picture = picture.with_ground(y);
+        }
+        let mut st = style(field, &title, 720, 400);
+        st.range = shared_range(&[&picture], field);
+        st.time_label = Some(format!("t = {:.3} s", last.time));
+        let path = args.out.join("final.png");
+        fem_render::frame::render(&[picture.view()], &st)
+            .and_then(|r| r.image.write_png(&path))
+            .map_err(|e| format!("{}: {e}", path.display()))?;
+        pictures.push("final.png".to_owned());
+    }
+    if args.gif && drawable {
+        let frames = write_gif(
+            &result,
+            &args.out.join("animation.gif"),
+            &GifOptions {
+                field,
+                delay_centiseconds: delay as u16,
+                title: title.clone(),
+                ground,
+                ..GifOptions::default()
+            },
+        )
+        .map_err(|e| e.to_string())?;
+        pictures.push(format!("animation.gif ({frames} frames)"));
+    }
+    if args.vtk {
+        pictures.push(format!("vtk/run.pvd ({} frames)", result.frame_times.len()));
+    }
     let s = &result.summary;
     if let Some(w) = &s.time_step_warning {
         eprintln!("warning: {w}");
@@ -146,12 +244,16 @@ pub fn run(args: &RunArgs) -> Result<(), String> {
         );
     }
     println!(
-        "wrote summary.json, probes.csv, mesh.json, stress.json, scene.toml{} in {}",
+        "wrote summary.json, probes.csv, mesh.json, stress.json, scene.toml{}{} in {}",
         if scene.scene.output.frames {
             ", frames.jsonl"
         } else {
             ""
         },
+        pictures
+            .iter()
+            .map(|p| format!(", {p}"))
+            .collect::<String>(),
         args.out.display()
     );
     match &s.blow_up_message {

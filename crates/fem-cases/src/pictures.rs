@@ -1,0 +1,371 @@
+//! Pictures of runs: a recorded frame as a PNG stress map, a run as an animated GIF, several
+//! runs side by side with one colorbar, probe curves as charts. The drawing itself is
+//! `fem-render`'s; this module turns a [`RunResult`] into what it draws.
+
+use std::path::Path;
+use std::str::FromStr;
+
+use fem_render::Image;
+use fem_render::chart::{LineChart, Scale, Series};
+use fem_render::colormap::Colormap;
+use fem_render::frame::{FieldValues, FrameStyle, MeshView, Rendered, render};
+
+use crate::error::CaseError;
+use crate::run::{RunResult, Snapshot};
+
+/// The field a picture is coloured by.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum FieldKind {
+    /// Per-element von Mises stress, shown in kPa.
+    #[default]
+    VonMises,
+    /// Per-vertex displacement magnitude `|x - X|`, shown in mm.
+    Displacement,
+    /// Per-element det F (area ratio), on a diverging colormap.
+    DetF,
+}
+
+impl FieldKind {
+    /// The name used on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::VonMises => "von-mises",
+            Self::Displacement => "displacement",
+            Self::DetF => "det-f",
+        }
+    }
+
+    /// The colorbar label, unit, display scale and colormap.
+    fn style(self) -> (&'static str, &'static str, f64, Colormap) {
+        match self {
+            Self::VonMises => ("von Mises stress", "kPa", 1e-3, Colormap::Viridis),
+            Self::Displacement => ("displacement", "mm", 1e3, Colormap::Cividis),
+            Self::DetF => ("det F", "-", 1.0, Colormap::Coolwarm),
+        }
+    }
+}
+
+impl FromStr for FieldKind {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "von-mises" => Ok(Self::VonMises),
+            "displacement" => Ok(Self::Displacement),
+            "det-f" => Ok(Self::DetF),
+            other => Err(format!(
+                "unknown field \"{other}\" (expected von-mises, displacement or det-f)"
+            )),
+        }
+    }
+}
+
+/// The mesh and one frame's field values, owned, ready to be viewed by [`MeshView`].
+pub struct FramePicture {
+    positions: Vec<[f64; 2]>,
+    rest: Vec<[f64; 2]>,
+    triangles: Vec<[usize; 3]>,
+    values: Vec<f64>,
+    per_vertex: bool,
+    obstacles: Vec<Vec<[f64; 2]>>,
+    /// Caption drawn above the panel.
+    pub caption: String,
+    /// Time of the frame, s.
+    pub time: f64,
+}
+
+impl FramePicture {
+    /// The picture of `snapshot` of `run`, coloured by `field`.
+    pub fn new(run: &RunResult, snapshot: &Snapshot, field: FieldKind, caption: &str) -> Self {
+        let (values, per_vertex) = match field {
+            FieldKind::VonMises => (snapshot.von_mises.clone(), false),
+            FieldKind::DetF => (snapshot.det_f.clone(), false),
+            FieldKind::Displacement => (
+                snapshot
+                    .positions
+                    .iter()
+                    .zip(&run.rest)
+                    .map(|(x, x0)| (x[0] - x0[0]).hypot(x[1] - x0[1]))
+                    .collect(),
+                true,
+            ),
+        };
+        Self {
+            positions: snapshot.positions.clone(),
+            rest: run.rest.clone(),
+            triangles: run
+                .triangles
+                .iter()
+                .map(|t| t.map(|i| i as usize))
+                .collect(),
+            values,
+            per_vertex,
+            obstacles: snapshot.obstacles.clone(),
+            caption: caption.to_owned(),
+            time: snapshot.time,
+        }
+    }
+
+    /// The picture with no field (the mesh in a flat colour), e.g. to show a scene's set-up.
+    pub fn plain(mut self) -> Self {
+        self.values.clear();
+        self
+    }
+
+    /// Adds a horizontal ground at height `y` (m), drawn as a thin strip under the body (the
+    /// strip spans the body's width and a margin).
+    pub fn with_ground(mut self, y: f64) -> Self {
+        let (lo, hi) = self.bounds();
+        let w = (hi[0] - lo[0]).max(1e-9);
+        let (x0, x1, t) = (lo[0] - 0.03 * w, hi[0] + 0.03 * w, 0.015 * w);
+        self.obstacles
+            .push(vec![[x0, y - t], [x1, y - t], [x1, y], [x0, y]]);
+        self
+    }
+
+    /// The view `fem-render` draws.
+    pub fn view(&self) -> MeshView<'_> {
+        MeshView {
+            positions: &self.positions,
+            triangles: &self.triangles,
+            field: if self.values.is_empty() {
+                None
+            } else if self.per_vertex {
+                Some(FieldValues::PerVertex(&self.values))
+            } else {
+                Some(FieldValues::PerElement(&self.values))
+            },
+            rest_positions: Some(&self.rest),
+            obstacles: &self.obstacles,
+            caption: &self.caption,
+        }
+    }
+
+    /// Lowest and highest corner over the current and rest positions and the obstacles.
+    pub fn bounds(&self) -> ([f64; 2], [f64; 2]) {
+        let mut lo = [f64::INFINITY; 2];
+        let mut hi = [f64::NEG_INFINITY; 2];
+        let points = self
+            .positions
+            .iter()
+            .chain(&self.rest)
+            .chain(self.obstacles.iter().flatten());
+        for p in points.filter(|p| p[0].is_finite() && p[1].is_finite()) {
+            for k in 0..2 {
+                lo[k] = lo[k].min(p[k]);
+                hi[k] = hi[k].max(p[k]);
+            }
+        }
+        (lo, hi)
+    }
+
+    /// The finite range of the field, in the field's own units.
+    pub fn range(&self) -> Option<(f64, f64)> {
+        finite_range(self.values.iter().copied())
+    }
+}
+
+fn finite_range(values: impl Iterator<Item = f64>) -> Option<(f64, f64)> {
+    let (lo, hi) = values
+        .filter(|v| v.is_finite())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+            (a.min(v), b.max(v))
+        });
+    (lo <= hi).then_some((lo, hi))
+}
+
+fn union(a: ([f64; 2], [f64; 2]), b: ([f64; 2], [f64; 2])) -> ([f64; 2], [f64; 2]) {
+    (
+        [a.0[0].min(b.0[0]), a.0[1].min(b.0[1])],
+        [a.1[0].max(b.1[0]), a.1[1].max(b.1[1])],
+    )
+}
+
+/// A frame style for `field` with `title`, panels of `width` x `height` pixels.
+pub fn style(field: FieldKind, title: &str, width: u32, height: u32) -> FrameStyle {
+    let (label, unit, scale, colormap) = field.style();
+    FrameStyle {
+        panel_width: width,
+        panel_height: height,
+        title: title.to_owned(),
+        colormap,
+        field_label: label.to_owned(),
+        unit: unit.to_owned(),
+        scale,
+        ..FrameStyle::default()
+    }
+}
+
+/// The displayed colour range covering every picture (in display units), with det F centred
+/// on 1 so that the diverging colormap's middle means "no area change".
+pub fn shared_range(pictures: &[&FramePicture], field: FieldKind) -> Option<(f64, f64)> {
+    let (_, _, scale, _) = field.style();
+    let (lo, hi) = pictures
+        .iter()
+        .filter_map(|p| p.range())
+        .reduce(|a, b| (a.0.min(b.0), a.1.max(b.1)))?;
+    let (mut lo, mut hi) = (lo * scale, hi * scale);
+    match field {
+        FieldKind::DetF => {
+            let r = (hi - 1.0).abs().max((1.0 - lo).abs()).max(1e-6);
+            lo = 1.0 - r;
+            hi = 1.0 + r;
+        }
+        _ => {
+            // Stress and displacement maps start at zero, so colours compare across panels.
+            lo = lo.min(0.0);
+            if hi <= lo {
+                hi = lo + 1.0;
+            }
+        }
+    }
+    Some((lo, hi))
+}
+
+/// Draws `pictures` side by side with one colorbar and a common world window.
+pub fn render_side_by_side(
+    pictures: &[&FramePicture],
+    field: FieldKind,
+    title: &str,
+    panel: (u32, u32),
+    range: Option<(f64, f64)>,
+) -> Result<Rendered, CaseError> {
+    let mut st = style(field, title, panel.0, panel.1);
+    st.range = range.or_else(|| shared_range(pictures, field));
+    st.bounds = pictures.iter().map(|p| p.bounds()).reduce(union);
+    let views: Vec<MeshView<'_>> = pictures.iter().map(|p| p.view()).collect();
+    render(&views, &st).map_err(|e| CaseError::Io(format!("rendering \"{title}\": {e}")))
+}
+
+/// Options of a run's animation.
+#[derive(Clone, Debug)]
+pub struct GifOptions {
+    /// The field the frames are coloured by.
+    pub field: FieldKind,
+    /// Delay between frames, in hundredths of a second.
+    pub delay_centiseconds: u16,
+    /// Panel size in pixels.
+    pub panel: (u32, u32),
+    /// Title above every frame.
+    pub title: String,
+    /// Height of a horizontal ground to draw, m.
+    pub ground: Option<f64>,
+}
+
+impl Default for GifOptions {
+    fn default() -> Self {
+        Self {
+            field: FieldKind::VonMises,
+            delay_centiseconds: 5,
+            panel: (560, 300),
+            title: String::new(),
+            ground: None,
+        }
+    }
+}
+
+/// Writes the run's snapshots as an animated GIF at `path` (one colour range and one world
+/// window for the whole animation, so colours and positions compare across frames).
+pub fn write_gif(run: &RunResult, path: &Path, options: &GifOptions) -> Result<usize, CaseError> {
+    if run.snapshots.is_empty() {
+        return Err(CaseError::Usage(format!(
+            "{}: the run kept no frames to animate",
+            path.display()
+        )));
+    }
+    let pictures: Vec<FramePicture> = run
+        .snapshots
+        .iter()
+        .map(|s| {
+            let p = FramePicture::new(run, s, options.field, "");
+            match options.ground {
+                Some(y) => p.with_ground(y),
+                None => p,
+            }
+        })
+        .collect();
+    let refs: Vec<&FramePicture> = pictures.iter().collect();
+    let mut st = style(
+        options.field,
+        &options.title,
+        options.panel.0,
+        options.panel.1,
+    );
+    st.range = shared_range(&refs, options.field);
+    st.bounds = pictures.iter().map(|p| p.bounds()).reduce(union);
+    let io = |e: fem_render::RenderError| CaseError::Io(format!("{}: {e}", path.display()));
+    let mut writer = None;
+    for p in &pictures {
+        st.time_label = Some(format!("t = {:.3} s", p.time));
+        let frame = render(&[p.view()], &st).map_err(io)?.image;
+        let w = match &mut writer {
+            Some(w) => w,
+            None => writer.insert(
+                fem_render::gif::GifWriter::new(
+                    Vec::new(),
+                    frame.width(),
+                    frame.height(),
+                    options.delay_centiseconds,
+                )
+                .map_err(io)?,
+            ),
+        };
+        w.push(&frame).map_err(io)?;
+    }
+    let w = writer.expect("at least one frame");
+    let frames = w.frames();
+    let bytes = w.finish().map_err(io)?;
+    crate::run::write_atomic(path, &bytes)?;
+    Ok(frames)
+}
+
+/// The snapshot of `run` closest in time to `time`.
+pub fn snapshot_at(run: &RunResult, time: f64) -> Option<&Snapshot> {
+    run.snapshots
+        .iter()
+        .min_by(|a, b| (a.time - time).abs().total_cmp(&(b.time - time).abs()))
+}
+
+/// A chart of each run's probe `probe` (its vertical displacement, mm) against time (s).
+pub fn probe_chart(runs: &[(&str, &RunResult)], probe: &str, title: &str) -> LineChart {
+    let series = runs
+        .iter()
+        .filter_map(|(label, run)| {
+            let values = run.probe(probe)?;
+            Some(Series {
+                label: (*label).to_owned(),
+                points: run
+                    .frame_times
+                    .iter()
+                    .zip(values)
+                    .map(|(f, u)| (f.1, u[1] * 1e3))
+                    .collect(),
+            })
+        })
+        .collect();
+    LineChart {
+        title: title.to_owned(),
+        x_label: "time [s]".into(),
+        y_label: format!("{probe} vertical displacement [mm]"),
+        x_scale: Scale::Linear,
+        y_scale: Scale::Linear,
+        series,
+        ..LineChart::default()
+    }
+}
+
+/// Writes `chart` as `<stem>.svg` and `<stem>.png` in `dir`.
+pub fn write_chart(
+    dir: &Path,
+    stem: &str,
+    svg: Result<String, fem_render::RenderError>,
+    png: Result<Image, fem_render::RenderError>,
+) -> Result<(), CaseError> {
+    let io = |e: fem_render::RenderError| CaseError::Io(format!("{}/{stem}: {e}", dir.display()));
+    crate::run::write_atomic(
+        &dir.join(format!("{stem}.svg")),
+        svg.map_err(io)?.as_bytes(),
+    )?;
+    png.map_err(io)?
+        .write_png(&dir.join(format!("{stem}.png")))
+        .map_err(io)
+}
