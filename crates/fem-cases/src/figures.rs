@@ -296,24 +296,12 @@ pub fn write_figures(runs_: &CaseRuns, dir: &Path) -> Result<Vec<Figure>, CaseEr
     }
     let fig2 = Image::vstack(&rows, 8, [255, 255, 255, 255]);
     write_png(&fig2, dir, "figure-2-case-a.png")?;
-    let tips: Vec<String> = runs_
-        .a
-        .rows
-        .iter()
-        .map(|r| {
-            format!(
-                "{} {:.0} mm",
-                energy_label(&r.energy),
-                r.probes.first().map_or(f64::NAN, |p| -p.min_uy * 1e3)
-            )
-        })
-        .collect();
     figures.push(Figure {
         file: "figure-2-case-a.png".into(),
         title: "Figure 2: case A, three energies".into(),
         caption: format!(
             "The 5 m x 1 m cantilever falling under gravity (explicit, dt = 1 ms), coloured by von Mises stress on one scale; the grey outline is the rest shape. Deepest tip deflection: {}.",
-            tips.join(", ")
+            deepest_tips(&runs_.a, |r| energy_label(&r.energy))
         ),
     });
 
@@ -359,24 +347,12 @@ pub fn write_figures(runs_: &CaseRuns, dir: &Path) -> Result<Vec<Figure>, CaseEr
         None,
     )?;
     write_png(&fig4, dir, "figure-4-case-c.png")?;
-    let deepest: Vec<String> = runs_
-        .c
-        .rows
-        .iter()
-        .map(|r| {
-            format!(
-                "{} {:.0} mm",
-                solver_label(&r.solver),
-                r.probes.first().map_or(f64::NAN, |p| -p.min_uy * 1e3)
-            )
-        })
-        .collect();
     figures.push(Figure {
         file: "figure-4-case-c.png".into(),
         title: "Figure 4: case C, three solvers".into(),
         caption: format!(
             "The soft cantilever under explicit FEM, PBD and XPBD at the time of explicit's deepest deflection. Deepest tip deflection: {}. PBD's stiffness depends on its iteration count, XPBD's does not.",
-            deepest.join(", ")
+            deepest_tips(&runs_.c, |r| solver_label(&r.solver))
         ),
     });
 
@@ -469,6 +445,21 @@ pub fn write_figures(runs_: &CaseRuns, dir: &Path) -> Result<Vec<Figure>, CaseEr
         });
     }
     Ok(figures)
+}
+
+/// "label N mm, ..." of each row's deepest deflection of its first probe.
+fn deepest_tips(c: &Comparison, label: impl Fn(&crate::compare::CompareRow) -> String) -> String {
+    c.rows
+        .iter()
+        .map(|r| {
+            format!(
+                "{} {:.0} mm",
+                label(r),
+                r.probes.first().map_or(f64::NAN, |p| -p.min_uy * 1e3)
+            )
+        })
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 /// The height of a built-in case's horizontal ground, if it has one.

@@ -656,12 +656,11 @@ fn read_section(
     Ok(arrays)
 }
 
-/// Parses the text of an ASCII `.vtu` file (VTK XML UnstructuredGrid with one Piece).
-///
-/// The error names what is wrong: a missing element or attribute, a wrong number of values, a
-/// token that is not a number (with its value), an index out of range, a non-ASCII format.
-pub fn parse_vtu(xml: &str) -> std::result::Result<VtuData, String> {
-    let doc = roxmltree::Document::parse(xml).map_err(|e| format!("invalid XML: {e}"))?;
+/// The document's `<VTKFile>` root, checked to be of `kind` (`UnstructuredGrid`, `Collection`).
+fn vtk_root<'a, 'i>(
+    doc: &'a roxmltree::Document<'i>,
+    kind: &str,
+) -> std::result::Result<Node<'a, 'i>, String> {
     let root = doc.root_element();
     if root.tag_name().name() != "VTKFile" {
         return Err(format!(
@@ -669,12 +668,20 @@ pub fn parse_vtu(xml: &str) -> std::result::Result<VtuData, String> {
             root.tag_name().name()
         ));
     }
-    let kind = attr(root, "type")?;
-    if kind != "UnstructuredGrid" {
-        return Err(format!(
-            "<VTKFile>: type={kind:?}, expected \"UnstructuredGrid\""
-        ));
+    let found = attr(root, "type")?;
+    if found != kind {
+        return Err(format!("<VTKFile>: type={found:?}, expected \"{kind}\""));
     }
+    Ok(root)
+}
+
+/// Parses the text of an ASCII `.vtu` file (VTK XML UnstructuredGrid with one Piece).
+///
+/// The error names what is wrong: a missing element or attribute, a wrong number of values, a
+/// token that is not a number (with its value), an index out of range, a non-ASCII format.
+pub fn parse_vtu(xml: &str) -> std::result::Result<VtuData, String> {
+    let doc = roxmltree::Document::parse(xml).map_err(|e| format!("invalid XML: {e}"))?;
+    let root = vtk_root(&doc, "UnstructuredGrid")?;
     let grid = child(root, "UnstructuredGrid")?;
     let mut pieces = grid
         .children()
@@ -785,17 +792,7 @@ pub fn read_vtu(path: &Path) -> Result<VtuData> {
 /// Parses the text of a `.pvd` collection: `(timestep, file)` per `<DataSet>`, in file order.
 fn parse_pvd(xml: &str) -> std::result::Result<Vec<(f64, String)>, String> {
     let doc = roxmltree::Document::parse(xml).map_err(|e| format!("invalid XML: {e}"))?;
-    let root = doc.root_element();
-    if root.tag_name().name() != "VTKFile" {
-        return Err(format!(
-            "root element is <{}>, expected <VTKFile>",
-            root.tag_name().name()
-        ));
-    }
-    let kind = attr(root, "type")?;
-    if kind != "Collection" {
-        return Err(format!("<VTKFile>: type={kind:?}, expected \"Collection\""));
-    }
+    let root = vtk_root(&doc, "Collection")?;
     let collection = child(root, "Collection")?;
     let mut out = Vec::new();
     for (i, ds) in collection
