@@ -295,7 +295,7 @@ pub fn write_gif(run: &RunResult, path: &Path, options: &GifOptions) -> Result<u
     let io = |e: fem_render::RenderError| CaseError::Io(format!("{}: {e}", path.display()));
     let mut writer = None;
     for p in &pictures {
-        st.time_label = Some(format!("t = {:.3} s", p.time));
+        st.time_label = Some(time_label(run, p.time));
         let frame = render(&[p.view()], &st).map_err(io)?.image;
         let w = match &mut writer {
             Some(w) => w,
@@ -316,6 +316,15 @@ pub fn write_gif(run: &RunResult, path: &Path, options: &GifOptions) -> Result<u
     let bytes = w.finish().map_err(io)?;
     crate::run::write_atomic(path, &bytes)?;
     Ok(frames)
+}
+
+/// "t = 0.120 s", or "load 0.40" for a static run (whose frames are load increments).
+pub fn time_label(run: &RunResult, time: f64) -> String {
+    if run.summary.solver == "static" {
+        format!("load {time:.2}")
+    } else {
+        format!("t = {time:.3} s")
+    }
 }
 
 /// The snapshot of `run` closest in time to `time`.

@@ -6,7 +6,9 @@ use std::path::PathBuf;
 
 use clap::Args;
 use fem_cases::cases::load_case_or_file;
-use fem_cases::pictures::{FieldKind, FramePicture, GifOptions, shared_range, style, write_gif};
+use fem_cases::pictures::{
+    FieldKind, FramePicture, GifOptions, shared_range, style, time_label, write_gif,
+};
 use fem_cases::run::{RunOptions, run_scene};
 
 /// Options shared by every command that loads a scene.
@@ -166,7 +168,7 @@ pub fn run(args: &RunArgs) -> Result<(), String> {
         }
         let mut st = style(field, &title, 720, 400);
         st.range = shared_range(&[&picture], field);
-        st.time_label = Some(format!("t = {:.3} s", last.time));
+        st.time_label = Some(time_label(&result, last.time));
         let path = args.out.join("final.png");
         fem_render::frame::render(&[picture.view()], &st)
             .and_then(|r| r.image.write_png(&path))
