@@ -211,13 +211,13 @@ fn row_at(
     panel: (u32, u32),
     range: Option<(f64, f64)>,
 ) -> Result<Image, CaseError> {
-    let pictures: Vec<FramePicture> = labelled
+    let pictures: Vec<FramePicture<'_>> = labelled
         .iter()
         .filter_map(|(label, run)| {
             snapshot_at(run, t).map(|s| FramePicture::new(run, s, FieldKind::VonMises, label))
         })
         .collect();
-    let refs: Vec<&FramePicture> = pictures.iter().collect();
+    let refs: Vec<&FramePicture<'_>> = pictures.iter().collect();
     Ok(render_side_by_side(&refs, FieldKind::VonMises, title, panel, range)?.image)
 }
 
@@ -251,10 +251,13 @@ pub fn figure_1(dir: &Path) -> Result<Figure, CaseError> {
     ];
     let mut panels = Vec::new();
     for (canvas, caption) in canvases.iter().zip(captions) {
-        let png = canvas
-            .to_png()
-            .map_err(|e| CaseError::Mesh(format!("figure 1: {e}")))?;
-        let img = Image::from_png(&png).map_err(render_err)?;
+        let (w, h) = canvas.size();
+        let rgba = canvas
+            .pixels()
+            .iter()
+            .flat_map(|&[r, g, b]| [r, g, b, 255])
+            .collect();
+        let img = Image::from_rgba(w as u32, h as u32, rgba).map_err(render_err)?;
         panels.push(fem_render::frame::with_caption(&img, caption));
     }
     let figure = Image::hstack(&panels, 12, [255, 255, 255, 255]);
@@ -369,19 +372,16 @@ pub fn write_figures(runs_: &CaseRuns, dir: &Path) -> Result<Vec<Figure>, CaseEr
         .find(|x| x.step == s.max_von_mises_step)
         .unwrap_or_else(|| drun.snapshots.last().expect("a run keeps its last frame"));
     let ground = ground_height("case-d")?;
-    let with_ground = |p: FramePicture| match ground {
-        Some(y) => p.with_ground(y),
-        None => p,
-    };
-    let scene_pic = with_ground(
-        FramePicture::new(drun, first, FieldKind::VonMises, "(a) the scene at t = 0").plain(),
-    );
-    let peak_pic = with_ground(FramePicture::new(
+    let scene_pic = FramePicture::new(drun, first, FieldKind::VonMises, "(a) the scene at t = 0")
+        .plain()
+        .with_ground(ground);
+    let peak_pic = FramePicture::new(
         drun,
         peak,
         FieldKind::VonMises,
         &format!("(b) von Mises stress at peak, t = {:.2} s", peak.time),
-    ));
+    )
+    .with_ground(ground);
     let top = render_side_by_side(
         &[&scene_pic],
         FieldKind::VonMises,
@@ -566,45 +566,31 @@ pub fn stability_chart(merged: &Merged) -> Result<GridChart, CaseError> {
     })
 }
 
-/// Animated GIFs of cases A (Neo-Hookean), C (XPBD) and D into `dir`, at most ~100 frames each.
+/// Animated GIFs of cases A and B (Neo-Hookean), C (XPBD) and D into `dir`, at most ~100
+/// frames each.
 pub fn write_animations(runs_: &CaseRuns, dir: &Path) -> Result<Vec<Figure>, CaseError> {
     let mut out = Vec::new();
-    let pick = |c: &Comparison, k: usize| -> Option<(String, RunResult)> {
-        let labelled = runs(c);
-        labelled
-            .get(k.min(labelled.len().saturating_sub(1)))
-            .map(|(l, r)| (l.clone(), (*r).clone()))
-    };
-    for (c, k, stem, what) in [
-        (&runs_.a, 2, "animation-case-a", "Case A"),
-        (&runs_.b, 2, "animation-case-b", "Case B"),
-        (&runs_.c, 2, "animation-case-c", "Case C"),
-        (&runs_.d, 0, "animation-case-d", "Case D"),
+    for (c, k, case, what, panel) in [
+        (&runs_.a, 2, "case-a", "Case A", (420, 220)),
+        (&runs_.b, 2, "case-b", "Case B", (420, 220)),
+        (&runs_.c, 2, "case-c", "Case C", (420, 220)),
+        (&runs_.d, 0, "case-d", "Case D", (640, 200)),
     ] {
-        let Some((label, mut run)) = pick(c, k) else {
+        let labelled = runs(c);
+        let Some((label, run)) = labelled.get(k.min(labelled.len().saturating_sub(1))) else {
             continue;
         };
-        let stride = run.snapshots.len().div_ceil(100).max(1);
-        let last = run.snapshots.last().cloned();
-        run.snapshots = run.snapshots.into_iter().step_by(stride).collect();
-        if let Some(last) = last {
-            if run.snapshots.last().map(|s| s.step) != Some(last.step) {
-                run.snapshots.push(last);
-            }
-        }
         let title = format!("{what}: {label}");
-        let file = format!("{stem}.gif");
+        let file = format!("animation-{case}.gif");
         let frames = write_gif(
-            &run,
+            run,
             &dir.join(&file),
             &GifOptions {
                 title: title.clone(),
-                panel: if stem.ends_with('d') {
-                    (640, 200)
-                } else {
-                    (420, 220)
-                },
-                ground: ground_height(&format!("case-{}", &stem[stem.len() - 1..]))?,
+                panel,
+                ground: ground_height(case)?,
+                // At most about 100 frames.
+                every: run.snapshots.len().div_ceil(100).max(1),
                 ..GifOptions::default()
             },
         )?;

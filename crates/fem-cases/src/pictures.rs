@@ -2,6 +2,7 @@
 //! runs side by side with one colorbar, probe curves as charts. The drawing itself is
 //! `fem-render`'s; this module turns a [`RunResult`] into what it draws.
 
+use std::borrow::Cow;
 use std::path::Path;
 use std::str::FromStr;
 
@@ -59,39 +60,48 @@ impl FromStr for FieldKind {
     }
 }
 
-/// The mesh and one frame's field values, owned, ready to be viewed by [`MeshView`].
-pub struct FramePicture {
-    positions: Vec<[f64; 2]>,
-    rest: Vec<[f64; 2]>,
+/// One frame of a run, ready to be viewed by [`MeshView`]: positions, rest shape and
+/// obstacles are borrowed from the run; only what is derived (the triangles as `usize`, a
+/// displacement field, an added ground) is owned.
+pub struct FramePicture<'a> {
+    positions: &'a [[f64; 2]],
+    rest: &'a [[f64; 2]],
     triangles: Vec<[usize; 3]>,
-    values: Vec<f64>,
+    values: Cow<'a, [f64]>,
     per_vertex: bool,
-    obstacles: Vec<Vec<[f64; 2]>>,
+    obstacles: Cow<'a, [Vec<[f64; 2]>]>,
     /// Caption drawn above the panel.
     pub caption: String,
     /// Time of the frame, s.
     pub time: f64,
 }
 
-impl FramePicture {
+impl<'a> FramePicture<'a> {
     /// The picture of `snapshot` of `run`, coloured by `field`.
-    pub fn new(run: &RunResult, snapshot: &Snapshot, field: FieldKind, caption: &str) -> Self {
+    pub fn new(
+        run: &'a RunResult,
+        snapshot: &'a Snapshot,
+        field: FieldKind,
+        caption: &str,
+    ) -> Self {
         let (values, per_vertex) = match field {
-            FieldKind::VonMises => (snapshot.von_mises.clone(), false),
-            FieldKind::DetF => (snapshot.det_f.clone(), false),
+            FieldKind::VonMises => (Cow::Borrowed(snapshot.von_mises.as_slice()), false),
+            FieldKind::DetF => (Cow::Borrowed(snapshot.det_f.as_slice()), false),
             FieldKind::Displacement => (
-                snapshot
-                    .positions
-                    .iter()
-                    .zip(&run.rest)
-                    .map(|(x, x0)| (x[0] - x0[0]).hypot(x[1] - x0[1]))
-                    .collect(),
+                Cow::Owned(
+                    snapshot
+                        .positions
+                        .iter()
+                        .zip(&run.rest)
+                        .map(|(x, x0)| (x[0] - x0[0]).hypot(x[1] - x0[1]))
+                        .collect(),
+                ),
                 true,
             ),
         };
         Self {
-            positions: snapshot.positions.clone(),
-            rest: run.rest.clone(),
+            positions: &snapshot.positions,
+            rest: &run.rest,
             triangles: run
                 .triangles
                 .iter()
@@ -99,7 +109,7 @@ impl FramePicture {
                 .collect(),
             values,
             per_vertex,
-            obstacles: snapshot.obstacles.clone(),
+            obstacles: Cow::Borrowed(&snapshot.obstacles),
             caption: caption.to_owned(),
             time: snapshot.time,
         }
@@ -107,17 +117,21 @@ impl FramePicture {
 
     /// The picture with no field (the mesh in a flat colour), e.g. to show a scene's set-up.
     pub fn plain(mut self) -> Self {
-        self.values.clear();
+        self.values = Cow::Borrowed(&[]);
         self
     }
 
     /// Adds a horizontal ground at height `y` (m), drawn as a thin strip under the body (the
-    /// strip spans the body's width and a margin).
-    pub fn with_ground(mut self, y: f64) -> Self {
+    /// strip spans the body's width and a margin); `None` adds nothing.
+    pub fn with_ground(mut self, y: Option<f64>) -> Self {
+        let Some(y) = y else {
+            return self;
+        };
         let (lo, hi) = self.bounds();
         let w = (hi[0] - lo[0]).max(1e-9);
         let (x0, x1, t) = (lo[0] - 0.03 * w, hi[0] + 0.03 * w, 0.015 * w);
         self.obstacles
+            .to_mut()
             .push(vec![[x0, y - t], [x1, y - t], [x1, y], [x0, y]]);
         self
     }
@@ -125,7 +139,7 @@ impl FramePicture {
     /// The view `fem-render` draws.
     pub fn view(&self) -> MeshView<'_> {
         MeshView {
-            positions: &self.positions,
+            positions: self.positions,
             triangles: &self.triangles,
             field: if self.values.is_empty() {
                 None
@@ -134,7 +148,7 @@ impl FramePicture {
             } else {
                 Some(FieldValues::PerElement(&self.values))
             },
-            rest_positions: Some(&self.rest),
+            rest_positions: Some(self.rest),
             obstacles: &self.obstacles,
             caption: &self.caption,
         }
@@ -147,7 +161,7 @@ impl FramePicture {
         let points = self
             .positions
             .iter()
-            .chain(&self.rest)
+            .chain(self.rest)
             .chain(self.obstacles.iter().flatten());
         for p in points.filter(|p| p[0].is_finite() && p[1].is_finite()) {
             for k in 0..2 {
@@ -197,7 +211,7 @@ pub fn style(field: FieldKind, title: &str, width: u32, height: u32) -> FrameSty
 
 /// The displayed colour range covering every picture (in display units), with det F centred
 /// on 1 so that the diverging colormap's middle means "no area change".
-pub fn shared_range(pictures: &[&FramePicture], field: FieldKind) -> Option<(f64, f64)> {
+pub fn shared_range(pictures: &[&FramePicture<'_>], field: FieldKind) -> Option<(f64, f64)> {
     let (_, _, scale, _) = field.style();
     let (lo, hi) = pictures
         .iter()
@@ -223,7 +237,7 @@ pub fn shared_range(pictures: &[&FramePicture], field: FieldKind) -> Option<(f64
 
 /// Draws `pictures` side by side with one colorbar and a common world window.
 pub fn render_side_by_side(
-    pictures: &[&FramePicture],
+    pictures: &[&FramePicture<'_>],
     field: FieldKind,
     title: &str,
     panel: (u32, u32),
@@ -249,6 +263,8 @@ pub struct GifOptions {
     pub title: String,
     /// Height of a horizontal ground to draw, m.
     pub ground: Option<f64>,
+    /// Animate every `every`-th kept snapshot (and always the last one).
+    pub every: usize,
 }
 
 impl Default for GifOptions {
@@ -259,6 +275,7 @@ impl Default for GifOptions {
             panel: (560, 300),
             title: String::new(),
             ground: None,
+            every: 1,
         }
     }
 }
@@ -272,18 +289,15 @@ pub fn write_gif(run: &RunResult, path: &Path, options: &GifOptions) -> Result<u
             path.display()
         )));
     }
-    let pictures: Vec<FramePicture> = run
+    let last = run.snapshots.len() - 1;
+    let pictures: Vec<FramePicture<'_>> = run
         .snapshots
         .iter()
-        .map(|s| {
-            let p = FramePicture::new(run, s, options.field, "");
-            match options.ground {
-                Some(y) => p.with_ground(y),
-                None => p,
-            }
-        })
+        .enumerate()
+        .filter(|(k, _)| k % options.every.max(1) == 0 || *k == last)
+        .map(|(_, s)| FramePicture::new(run, s, options.field, "").with_ground(options.ground))
         .collect();
-    let refs: Vec<&FramePicture> = pictures.iter().collect();
+    let refs: Vec<&FramePicture<'_>> = pictures.iter().collect();
     let mut st = style(
         options.field,
         &options.title,

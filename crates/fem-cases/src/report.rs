@@ -261,28 +261,9 @@ fn machine() -> Vec<(String, String)> {
     ]
 }
 
-/// `YYYY-MM-DD HH:MM:SS UTC` of now.
+/// Now, as RFC 3339 UTC (`2026-11-22T10:50:55Z`).
 fn utc_now() -> String {
-    let secs = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0, |d| d.as_secs());
-    let (days, rem) = (secs / 86_400, secs % 86_400);
-    // Civil date from days since 1970-01-01 (Howard Hinnant's algorithm).
-    let z = days as i64 + 719_468;
-    let era = z.div_euclid(146_097);
-    let doe = z - era * 146_097;
-    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
-    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
-    let mp = (5 * doy + 2) / 153;
-    let d = doy - (153 * mp + 2) / 5 + 1;
-    let m = if mp < 10 { mp + 3 } else { mp - 9 };
-    let y = yoe + era * 400 + i64::from(m <= 2);
-    format!(
-        "{y:04}-{m:02}-{d:02} {:02}:{:02}:{:02} UTC",
-        rem / 3600,
-        rem % 3600 / 60,
-        rem % 60
-    )
+    humantime::format_rfc3339_seconds(std::time::SystemTime::now()).to_string()
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -297,19 +278,6 @@ fn page(
     start: Instant,
 ) -> Result<String, CaseError> {
     let mut h = String::new();
-    let _ = write!(
-        h,
-        "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>fem2d report</title>\n<style>{STYLE}</style>\n<script>{SELF_CHECK}</script>\n</head>\n<body>\n"
-    );
-    let _ = writeln!(
-        h,
-        "<h1>fem2d report</h1>\n<p>2D energy-based FEM elastodynamics: the paper's cases A-D regenerated with fem2d {} on {}. Every number and picture on this page was computed by the command <code>{}</code> in {{WALL}} s.</p>",
-        env!("CARGO_PKG_VERSION"),
-        utc_now(),
-        escape(&options.command)
-    );
-    h.push_str("<p>Contents: <a href=\"#table1\">Table 1</a> · <a href=\"#figures\">Figures 1-5</a> · <a href=\"#curves\">curves and stability</a> · <a href=\"#comparisons\">comparisons and timing</a> · <a href=\"#animations\">animations</a> · <a href=\"#metadata\">metadata</a></p>\n");
-
     h.push_str("<h2 id=\"table1\">Table 1: case A, tip displacement</h2>\n");
     h.push_str(&markdown_tables_to_html(&table.to_markdown()));
 
@@ -407,5 +375,21 @@ fn page(
     h.push_str(
         "<p id=\"self-check\" class=\"note\">Images not checked yet.</p>\n</body>\n</html>\n",
     );
-    Ok(h.replace("{WALL}", &format!("{:.1}", start.elapsed().as_secs_f64())))
+    // The header last, so that it can state the wall time of everything above.
+    let mut head = String::new();
+    let _ = write!(
+        head,
+        "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>fem2d report</title>\n<style>{STYLE}</style>\n<script>{SELF_CHECK}</script>\n</head>\n<body>\n"
+    );
+    let _ = writeln!(
+        head,
+        "<h1>fem2d report</h1>\n<p>2D energy-based FEM elastodynamics: the paper's cases A-D regenerated with fem2d {} on {}. Every number and picture on this page was computed by the command <code>{}</code> in {:.1} s.</p>",
+        env!("CARGO_PKG_VERSION"),
+        utc_now(),
+        escape(&options.command),
+        start.elapsed().as_secs_f64()
+    );
+    head.push_str("<p>Contents: <a href=\"#table1\">Table 1</a> · <a href=\"#figures\">Figures 1-5</a> · <a href=\"#curves\">curves and stability</a> · <a href=\"#comparisons\">comparisons and timing</a> · <a href=\"#animations\">animations</a> · <a href=\"#metadata\">metadata</a></p>\n");
+
+    Ok(head + &h)
 }

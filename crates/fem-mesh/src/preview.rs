@@ -75,6 +75,16 @@ impl Canvas {
         }
     }
 
+    /// Width and height in pixels.
+    pub fn size(&self) -> (usize, usize) {
+        (self.width, self.height)
+    }
+
+    /// The pixels, RGB, row-major with the top row first.
+    pub fn pixels(&self) -> &[[u8; 3]] {
+        &self.pixels
+    }
+
     /// A square dot of `size` pixels at world point `p`.
     pub fn dot(&mut self, p: [f64; 2], size: i64, c: Rgb) {
         let [x, y] = self.to_px(p);

@@ -162,10 +162,7 @@ pub fn run(args: &RunArgs) -> Result<(), String> {
             .snapshots
             .last()
             .ok_or("the run recorded no frame to draw")?;
-        let mut picture = FramePicture::new(&result, last, field, "");
-        if let Some(y) = ground {
-            picture = picture.with_ground(y);
-        }
+        let picture = FramePicture::new(&result, last, field, "").with_ground(ground);
         let mut st = style(field, &title, 720, 400);
         st.range = shared_range(&[&picture], field);
         st.time_label = Some(time_label(&result, last.time));
