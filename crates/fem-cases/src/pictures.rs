@@ -265,6 +265,8 @@ pub struct GifOptions {
     pub ground: Option<f64>,
     /// Animate every `every`-th kept snapshot (and always the last one).
     pub every: usize,
+    /// Draw the triangles' edges over the colours.
+    pub wireframe: bool,
 }
 
 impl Default for GifOptions {
@@ -276,6 +278,7 @@ impl Default for GifOptions {
             title: String::new(),
             ground: None,
             every: 1,
+            wireframe: false,
         }
     }
 }
@@ -306,6 +309,7 @@ pub fn write_gif(run: &RunResult, path: &Path, options: &GifOptions) -> Result<u
     );
     st.range = shared_range(&refs, options.field);
     st.bounds = pictures.iter().map(|p| p.bounds()).reduce(union);
+    st.wireframe = options.wireframe;
     let io = |e: fem_render::RenderError| CaseError::Io(format!("{}: {e}", path.display()));
     let mut writer = None;
     for p in &pictures {

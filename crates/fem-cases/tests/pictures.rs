@@ -118,6 +118,33 @@ fn gif_cadence_and_field_are_settable() {
 }
 
 #[test]
+fn wireframe_darkens_only_edge_pixels() {
+    let plain = scratch("pictures-plain");
+    let wire = scratch("pictures-wire");
+    run_ok(&["case-a", "--steps", "20", "--png"], &plain);
+    run_ok(&["case-a", "--steps", "20", "--png", "--wireframe"], &wire);
+    let load = |d: &std::path::Path| {
+        Image::from_png(&std::fs::read(d.join("final.png")).unwrap()).unwrap()
+    };
+    let (a, b) = (load(&plain), load(&wire));
+    assert_eq!((a.width(), a.height()), (b.width(), b.height()));
+    let mut changed = 0;
+    for (p, q) in a.as_rgba().chunks_exact(4).zip(b.as_rgba().chunks_exact(4)) {
+        if p != q {
+            changed += 1;
+            // Edges are a dark colour blended over the fill: a changed pixel only gets darker.
+            let sum = |c: &[u8]| c[..3].iter().map(|&v| v as u32).sum::<u32>();
+            assert!(
+                sum(q) < sum(p),
+                "wireframe pixel {q:?} is not darker than {p:?}"
+            );
+        }
+    }
+    // Case A's mesh has well over a hundred edges, each several pixels long.
+    assert!(changed > 500, "only {changed} pixels changed");
+}
+
+#[test]
 fn bad_picture_flags_are_one_line_errors() {
     let dir = scratch("pictures-bad");
     let e = one_line_error(&[

@@ -69,6 +69,9 @@ pub struct RunArgs {
     /// det-f (per element).
     #[arg(long, default_value = "von-mises")]
     pub field: String,
+    /// Draw the triangles' edges over the colours in --png and --gif.
+    #[arg(long)]
+    pub wireframe: bool,
     /// Also write the recorded frames as VTK for ParaView: `vtk/run.pvd` and one
     /// `vtk/run_NNNNNN.vtu` per frame (displacement and velocity per vertex, von Mises and
     /// det F per element).
@@ -166,6 +169,7 @@ pub fn run(args: &RunArgs) -> Result<(), String> {
         let mut st = style(field, &title, 720, 400);
         st.range = shared_range(&[&picture], field);
         st.time_label = Some(time_label(&result, last.time));
+        st.wireframe = args.wireframe;
         let path = args.out.join("final.png");
         fem_render::frame::render(&[picture.view()], &st)
             .and_then(|r| r.image.write_png(&path))
@@ -181,6 +185,7 @@ pub fn run(args: &RunArgs) -> Result<(), String> {
                 delay_centiseconds: delay as u16,
                 title: title.clone(),
                 ground,
+                wireframe: args.wireframe,
                 ..GifOptions::default()
             },
         )
