@@ -581,6 +581,12 @@ fn samples_are_written_to_the_temp_dir() {
         .write_png(&dir.join("fem-render-log-chart.png"))
         .unwrap();
 
+    many_series(40, 720, 420)
+        .to_png()
+        .unwrap()
+        .write_png(&dir.join("fem-render-many-series.png"))
+        .unwrap();
+
     let grid = stability_grid();
     grid.to_png()
         .unwrap()
@@ -615,4 +621,58 @@ fn degenerate_ranges_still_draw() {
         let n = count(&img, all(&img), |p| near(p, series_color(0), 40));
         assert!(n > 20, "{points:?}: {n} pixels of the series colour");
     }
+}
+
+/// `n` labelled straight lines in a `width` x `height` chart.
+fn many_series(n: usize, width: u32, height: u32) -> LineChart {
+    LineChart {
+        title: "Many series".to_string(),
+        x_label: "time [s]".to_string(),
+        y_label: "u [m]".to_string(),
+        series: (0..n)
+            .map(|k| Series {
+                label: format!("energy {k:02}, E = {} kPa", 10 * (k + 1)),
+                points: vec![(0.0, k as f64), (1.0, 2.0 * k as f64)],
+            })
+            .collect(),
+        width,
+        height,
+        ..LineChart::default()
+    }
+}
+
+#[test]
+fn a_long_legend_wraps_into_columns_inside_the_chart() {
+    for n in [5, 17, 18, 40, 60] {
+        let chart = many_series(n, 720, 420);
+        let svg = chart.to_svg().unwrap();
+        let doc = roxmltree::Document::parse(&svg).unwrap();
+        let [left, _, width, _] = chart.plot_rect().unwrap();
+        let places: Vec<(f64, f64)> = doc
+            .descendants()
+            .filter(|e| e.has_tag_name("text") && e.attribute("class") == Some("legend"))
+            .map(|e| {
+                let at = |a: &str| e.attribute(a).unwrap().parse::<f64>().unwrap();
+                (at("x"), at("y"))
+            })
+            .collect();
+        assert_eq!(places.len(), n, "{n} series");
+        for (k, &(x, y)) in places.iter().enumerate() {
+            // Right of the plot, above the chart's bottom edge, and left of its right edge
+            // with room for at least a few characters.
+            assert!(x > left + width, "{n} series: entry {k} at x = {x}");
+            assert!(x < 720.0 - 30.0, "{n} series: entry {k} at x = {x}");
+            assert!(y < 420.0 - 4.0, "{n} series: entry {k} at y = {y}");
+            // No two entries share a place: different columns or a full row apart.
+            for &(x2, y2) in &places[..k] {
+                assert!(
+                    (x - x2).abs() > 20.0 || (y - y2).abs() >= 19.9,
+                    "{n} series: entries overlap at ({x}, {y}) and ({x2}, {y2})"
+                );
+            }
+        }
+    }
+    // Far too many entries for the chart: a clear error, not a clipped legend.
+    let e = many_series(400, 400, 200).to_svg().unwrap_err().to_string();
+    assert!(e.contains("400 legend entries"), "{e}");
 }

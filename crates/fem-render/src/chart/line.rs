@@ -33,9 +33,12 @@ const ZERO: &str = "#9a9a9a";
 /// Where the legend goes.
 enum Legend {
     None,
-    /// A column right of the plot, entries from the top.
+    /// Columns right of the plot, `rows` entries each, filled top to bottom then left to
+    /// right; each column is `column_w` wide.
     Right {
         x: f64,
+        rows: usize,
+        column_w: f64,
     },
     /// Rows below the x axis label: for each entry, its offset from the plot's left edge and
     /// its row.
@@ -155,23 +158,45 @@ impl LineChart {
         let mut below_h = below
             .last()
             .map_or(0.0, |&(_, r)| 6.0 + (r + 1) as f64 * LEGEND_ROW);
-        if below_h > 0.3 * h {
-            // Long labels, many series: a right column of shortened labels.
-            below.clear();
-            below_h = 0.0;
-            right_legend = true;
-            column_w = max_column_w;
-            for (_, l) in &mut entries {
-                *l = shorten(l, max_column_w - (16.0 + SWATCH + 6.0), LEGEND);
-            }
-        }
-
         let top = PAD
             + if self.title.is_empty() {
                 6.0
             } else {
                 TITLE + 10.0
             };
+        // Entries a right column holds between the plot's top and the chart's bottom.
+        let rows_fit = (((h - PAD - (top + 10.0)) / LEGEND_ROW).floor() as usize).max(1);
+        let mut legend_rows = entries.len().max(1);
+        let mut legend_columns = 1;
+        if below_h > 0.3 * h || (right_legend && entries.len() > rows_fit) {
+            // Long labels or many series: right columns of shortened labels, as many columns
+            // as the entries need, sharing the right 30 % of the chart (50 % for several
+            // columns, so that labels keep a few characters).
+            below.clear();
+            below_h = 0.0;
+            right_legend = true;
+            legend_columns = entries.len().div_ceil(rows_fit);
+            legend_rows = entries.len().div_ceil(legend_columns);
+            let share = if legend_columns > 1 {
+                0.5 * w
+            } else {
+                max_column_w
+            };
+            column_w = (share / legend_columns as f64).min(column_w);
+            let text_room = column_w - (16.0 + SWATCH + 6.0);
+            if text_room < 3.0 * LEGEND {
+                return Err(RenderError::Input(format!(
+                    "LineChart: {} legend entries do not fit in a {}x{} chart; make it taller \
+                     or wider, or give some series an empty label",
+                    entries.len(),
+                    self.width,
+                    self.height
+                )));
+            }
+            for (_, l) in &mut entries {
+                *l = shorten(l, text_room, LEGEND);
+            }
+        }
         let x_label_h = if self.x_label.is_empty() {
             0.0
         } else {
@@ -192,7 +217,13 @@ impl LineChart {
             LABEL + 10.0
         };
         let left = (PAD + y_label_w + y_tick_w + 4.0 + TICK_LEN).ceil();
-        let mut right = w - PAD - if right_legend { column_w } else { 0.0 };
+        let mut right = w
+            - PAD
+            - if right_legend {
+                column_w * legend_columns as f64
+            } else {
+                0.0
+            };
         if right - left < 60.0 || plot_h < 40.0 {
             return Err(RenderError::Input(format!(
                 "LineChart: a {}x{} chart is too small for its labels and legend \
@@ -224,7 +255,11 @@ impl LineChart {
         let legend = if entries.is_empty() {
             Legend::None
         } else if right_legend {
-            Legend::Right { x: right + 16.0 }
+            Legend::Right {
+                x: right + 16.0,
+                rows: legend_rows,
+                column_w,
+            }
         } else {
             Legend::Below {
                 y: h - PAD - below_h + 6.0,
@@ -474,10 +509,18 @@ impl LineChart {
         };
         match &l.legend {
             Legend::None => {}
-            Legend::Right { x } => {
+            Legend::Right { x, rows, column_w } => {
                 out.push_str("<g class=\"legend\">\n");
                 for (k, (i, label)) in l.entries.iter().enumerate() {
-                    entry(&mut out, *i, label, *x, top + 10.0 + k as f64 * LEGEND_ROW);
+                    let (column, row) = (k / rows, k % rows);
+                    let ex = x + column as f64 * column_w;
+                    entry(
+                        &mut out,
+                        *i,
+                        label,
+                        ex,
+                        top + 10.0 + row as f64 * LEGEND_ROW,
+                    );
                 }
                 out.push_str("</g>\n");
             }
