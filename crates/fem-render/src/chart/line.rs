@@ -166,7 +166,6 @@ impl LineChart {
             };
         // Entries a right column holds between the plot's top and the chart's bottom.
         let rows_fit = (((h - PAD - (top + 10.0)) / LEGEND_ROW).floor() as usize).max(1);
-        let mut legend_rows = entries.len().max(1);
         let mut legend_columns = 1;
         if below_h > 0.3 * h || (right_legend && entries.len() > rows_fit) {
             // Long labels or many series: right columns of shortened labels, as many columns
@@ -176,7 +175,6 @@ impl LineChart {
             below_h = 0.0;
             right_legend = true;
             legend_columns = entries.len().div_ceil(rows_fit);
-            legend_rows = entries.len().div_ceil(legend_columns);
             let share = if legend_columns > 1 {
                 0.5 * w
             } else {
@@ -257,7 +255,7 @@ impl LineChart {
         } else if right_legend {
             Legend::Right {
                 x: right + 16.0,
-                rows: legend_rows,
+                rows: entries.len().div_ceil(legend_columns),
                 column_w,
             }
         } else {
