@@ -38,6 +38,7 @@ pub mod pipeline;
 pub mod preview;
 pub mod quality;
 pub mod simplify;
+mod stopwatch;
 pub mod structured;
 pub mod triangulate;
 pub mod types;

@@ -3,7 +3,7 @@
 //! report, with the wall time of every stage.
 
 use std::path::Path;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use crate::alpha::{AlphaParams, AlphaShape, alpha_shape};
 use crate::camera::{Camera, ProjectionParams, project_points};
@@ -12,6 +12,7 @@ use crate::load::{LoadOptions, load_model};
 use crate::preview::Stages;
 use crate::quality::QualityReport;
 use crate::simplify::{SimplifyParams, SimplifyReport, simplify_polygon};
+use crate::stopwatch::Stopwatch;
 use crate::triangulate::{TriangulateParams, TriangulateReport, triangulate};
 use crate::types::{Mesh2, PolygonWithHoles, Surface3};
 
@@ -120,7 +121,7 @@ impl PipelineOutput {
 
 /// Runs the pipeline on the model file at `path`.
 pub fn mesh_model_file(path: &Path, params: &PipelineParams) -> Result<PipelineOutput> {
-    let start = Instant::now();
+    let start = Stopwatch::start();
     let surface = load_model(path, &params.load)?;
     let load = start.elapsed();
     let mut out = mesh_surface(surface, params)?;
@@ -137,18 +138,18 @@ pub fn mesh_surface(mut surface: Surface3, params: &PipelineParams) -> Result<Pi
             format!("scale must be positive and finite, got {}", params.scale),
         ));
     }
-    let t = Instant::now();
+    let t = Stopwatch::start();
     if params.scale != 1.0 {
         surface.scale(params.scale);
     }
     let points = project_points(&surface.vertices, &params.camera, &params.projection)?;
     times.project = t.elapsed();
 
-    let t = Instant::now();
+    let t = Stopwatch::start();
     let alpha = alpha_shape(&points, &params.alpha)?;
     times.alpha = t.elapsed();
 
-    let t = Instant::now();
+    let t = Stopwatch::start();
     let epsilon = params
         .epsilon
         .unwrap_or(params.epsilon_per_radius * alpha.radius);
@@ -162,11 +163,11 @@ pub fn mesh_surface(mut surface: Surface3, params: &PipelineParams) -> Result<Pi
     }
     times.simplify = t.elapsed();
 
-    let t = Instant::now();
+    let t = Stopwatch::start();
     let (mesh, triangulate_report) = triangulate(&simplified, &params.triangulate)?;
     times.triangulate = t.elapsed();
 
-    let t = Instant::now();
+    let t = Stopwatch::start();
     let polygon_area = simplified.iter().map(PolygonWithHoles::area).sum();
     let quality = QualityReport::of(&mesh, Some(polygon_area));
     times.quality = t.elapsed();

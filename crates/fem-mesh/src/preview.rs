@@ -2,11 +2,15 @@
 //! alpha shape, simplified polygon and final mesh, each as a PNG panel, plus all four side by
 //! side. A deliberately tiny rasteriser (points, lines, even-odd polygon fill) on an RGB buffer,
 //! encoded with the `png` crate: a drawing library would be a large dependency for four pictures,
-//! and the rendering crate of the workspace is where pretty pictures belong.
+//! and the rendering crate of the workspace is where pretty pictures belong. The encoding
+//! ([`Canvas::to_png`], [`write_previews`]) needs the default `png` feature; drawing does not.
 
+#[cfg(feature = "png")]
 use std::path::Path;
 
+#[cfg(feature = "png")]
 use crate::error::{MeshError, Result};
+#[cfg(feature = "png")]
 use crate::io::write_atomic;
 use crate::types::{Mesh2, PolygonWithHoles};
 
@@ -139,6 +143,7 @@ impl Canvas {
     }
 
     /// Encodes the canvas as PNG bytes.
+    #[cfg(feature = "png")]
     pub fn to_png(&self) -> Result<Vec<u8>> {
         let mut out = Vec::new();
         {
@@ -153,6 +158,7 @@ impl Canvas {
         Ok(out)
     }
 
+    #[cfg(feature = "png")]
     fn blit(&self, into: &mut Canvas, x0: usize) {
         for y in 0..self.height.min(into.height) {
             for x in 0..self.width {
@@ -245,6 +251,7 @@ fn draw_ring(canvas: &mut Canvas, ring: &[[f64; 2]], c: Rgb) {
 
 /// Writes the four panels and the combined figure ([`PREVIEW_FILES`]) into `dir` (created if
 /// missing).
+#[cfg(feature = "png")]
 pub fn write_previews(dir: &Path, stages: &Stages<'_>, params: &PreviewParams) -> Result<()> {
     std::fs::create_dir_all(dir).map_err(|e| MeshError::io(dir, e))?;
     let panels = render_stages(stages, params);

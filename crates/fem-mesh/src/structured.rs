@@ -4,8 +4,10 @@
 use crate::error::{MeshError, Result};
 use crate::types::Mesh2;
 
-/// How each grid cell is split into triangles.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+/// How each grid cell is split into triangles. Named `right`, `left`, `alternating` and
+/// `crossed` in files (serde).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
 pub enum Diagonal {
     /// Every cell split along the diagonal from its lower-left to its upper-right corner (`/`).
     /// Default.
@@ -18,6 +20,26 @@ pub enum Diagonal {
     /// Four triangles per cell around an extra vertex at the cell centre (isotropic, twice the
     /// triangles).
     Crossed,
+}
+
+impl Diagonal {
+    /// Every pattern.
+    pub const ALL: [Diagonal; 4] = [
+        Diagonal::Right,
+        Diagonal::Left,
+        Diagonal::Alternating,
+        Diagonal::Crossed,
+    ];
+
+    /// The name in files (`right`, `left`, `alternating`, `crossed`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Diagonal::Right => "right",
+            Diagonal::Left => "left",
+            Diagonal::Alternating => "alternating",
+            Diagonal::Crossed => "crossed",
+        }
+    }
 }
 
 /// Parameters of [`rectangle`].

@@ -55,26 +55,44 @@ impl ModelFormat {
 
 /// Reads the model at `path` (format from its extension).
 pub fn load_model(path: &Path, options: &LoadOptions) -> Result<Surface3> {
-    let format = ModelFormat::from_path(path).ok_or_else(|| {
+    let format = format_of(path)?;
+    let bytes = std::fs::read(path).map_err(|e| MeshError::io(path, e))?;
+    parse_model_as(format, &bytes, path, options)
+}
+
+/// Parses a model already in memory; `name` gives the format (its extension) and is named in
+/// error messages. For callers without a file system (a browser) or with their own storage.
+pub fn parse_model(bytes: &[u8], name: &Path, options: &LoadOptions) -> Result<Surface3> {
+    parse_model_as(format_of(name)?, bytes, name, options)
+}
+
+fn format_of(path: &Path) -> Result<ModelFormat> {
+    ModelFormat::from_path(path).ok_or_else(|| {
         MeshError::parse(
             path,
             "file name",
             "unknown model format (expected extension .obj, .stl or .ply)",
         )
-    })?;
-    let bytes = std::fs::read(path).map_err(|e| MeshError::io(path, e))?;
-    let surface = match format {
-        ModelFormat::Obj => parse_obj(&bytes, path, options)?,
+    })
+}
+
+fn parse_model_as(
+    format: ModelFormat,
+    bytes: &[u8],
+    path: &Path,
+    options: &LoadOptions,
+) -> Result<Surface3> {
+    Ok(match format {
+        ModelFormat::Obj => parse_obj(bytes, path, options)?,
         ModelFormat::Stl => {
             reject_groups(path, options)?;
-            parse_stl(&bytes, path)?
+            parse_stl(bytes, path)?
         }
         ModelFormat::Ply => {
             reject_groups(path, options)?;
-            parse_ply(&bytes, path)?
+            parse_ply(bytes, path)?
         }
-    };
-    Ok(surface)
+    })
 }
 
 fn reject_groups(path: &Path, options: &LoadOptions) -> Result<()> {
