@@ -19,6 +19,10 @@
 //! Units are SI, per unit thickness. Notation (`F`, `P`, `J`, `psi`) follows continuum
 //! mechanics; fourth-order tensors act on the column-major `vec(F)` ([`math`]).
 //!
+//! Optional feature `serde`: [`EnergyKind`](energy::EnergyKind) and [`PlaneModel`] (de)serialise
+//! as their names (`"neo-hookean"`, `"plane-strain"`), so files and scenes name them as the
+//! command line does.
+//!
 //! What this crate does not know: time stepping, boundary conditions, contact, file formats
 //! and meshing. Those live in `fem-solvers`, `fem-mesh` and `fem-cases`.
 //!

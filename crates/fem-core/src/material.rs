@@ -49,6 +49,24 @@ impl std::str::FromStr for PlaneModel {
     }
 }
 
+/// With the `serde` feature a plane model is written as its name (`"plane-strain"`,
+/// `"plane-stress"`); reading another name fails with the [`FromStr`](std::str::FromStr)
+/// message.
+#[cfg(feature = "serde")]
+impl serde::Serialize for PlaneModel {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(self.name())
+    }
+}
+
+#[cfg(feature = "serde")]
+impl<'de> serde::Deserialize<'de> for PlaneModel {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let name = <String as serde::Deserialize>::deserialize(d)?;
+        name.parse().map_err(serde::de::Error::custom)
+    }
+}
+
 /// An invalid material constant: names the field, the value and the rule it breaks.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 #[error("material.{field} = {value}: {rule}")]

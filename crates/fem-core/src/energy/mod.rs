@@ -162,6 +162,23 @@ impl FromStr for EnergyKind {
     }
 }
 
+/// With the `serde` feature an energy kind is written as its name (`"neo-hookean"`); reading an
+/// unknown name fails with the [`EnergyError::UnknownName`] message, which lists the valid ones.
+#[cfg(feature = "serde")]
+impl serde::Serialize for EnergyKind {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(self.name())
+    }
+}
+
+#[cfg(feature = "serde")]
+impl<'de> serde::Deserialize<'de> for EnergyKind {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let name = <String as serde::Deserialize>::deserialize(d)?;
+        name.parse().map_err(serde::de::Error::custom)
+    }
+}
+
 /// Errors raised when choosing or building an energy.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum EnergyError {
