@@ -2,7 +2,8 @@
 //! solver on one thread, timed by `fem2d compare` (best of 3), written to
 //! `docs/bench-cases.json` and `docs/bench-cases.md`.
 //!
-//! Each case runs `fem2d compare CASE --energies E,... --solvers S,... --threads 1 --out TMP`
+//! Each case runs `fem2d compare CASE --energies E,... --threads 1 --out TMP` (compare's default
+//! solvers: the paper's frameworks, from the solver registry)
 //! [`REPEATS`] times; every row keeps the repeat with the smallest `step_seconds` (the least
 //! disturbed: the wall time of the steps alone, recording and mesh building excluded), with
 //! that repeat's element-steps per second and real-time factor. The two targets of the issue
@@ -23,8 +24,6 @@ use crate::util::{Fem2d, TempDir, array, command_line, num, read_json, root, tex
 pub const CASES: [&str; 4] = ["case-a", "case-b", "case-c", "case-d"];
 /// Every energy `fem2d` knows.
 pub const ENERGIES: &str = "stvk,corotational,neo-hookean,stable-neo-hookean,linear";
-/// Every solver `fem2d compare` accepts.
-pub const SOLVERS: &str = "explicit,pbd,xpbd";
 /// Timing repeats per case (the best is kept per row).
 pub const REPEATS: usize = 3;
 /// Case A target: 2000 steps per energy under this many seconds on one core.
@@ -63,7 +62,7 @@ pub fn run(args: &[&str]) -> Result<(), String> {
     let report = json!({
         "generated_by": format!("cargo xtask bench-cases{}", if quick { " --quick" } else { "" }),
         "machine": machine,
-        "command": format!("fem2d compare CASE --energies {ENERGIES} --solvers {SOLVERS} --threads 1 --out DIR"),
+        "command": format!("fem2d compare CASE --energies {ENERGIES} --threads 1 --out DIR"),
         "repeats": repeats,
         "quick": quick,
         "timing": "per row, the repeat with the smallest step_seconds (wall time of the steps alone, s)",
@@ -106,8 +105,6 @@ fn bench_case(fem2d: &Fem2d, case: &str, repeats: usize, quick: bool) -> Result<
             case,
             "--energies",
             ENERGIES,
-            "--solvers",
-            SOLVERS,
             "--threads",
             "1",
             "--out",
@@ -123,6 +120,7 @@ fn bench_case(fem2d: &Fem2d, case: &str, repeats: usize, quick: bool) -> Result<
         let cmp = read_json(&dir.path().join("compare.json"))?;
         if header.is_null() {
             header = json!({
+                "scene_solver": cmp["scene_solver"],
                 "triangles": cmp["triangles"],
                 "dt": cmp["dt"],
                 "steps": cmp["steps"],
@@ -161,6 +159,7 @@ fn bench_case(fem2d: &Fem2d, case: &str, repeats: usize, quick: bool) -> Result<
     }
     Ok(json!({
         "case": case,
+        "scene_solver": header["scene_solver"],
         "triangles": header["triangles"],
         "dt": header["dt"],
         "steps": header["steps"],
@@ -198,16 +197,21 @@ fn find_case<'a>(cases: &'a [Value], name: &str) -> Option<&'a Value> {
     cases.iter().find(|c| c["case"] == name)
 }
 
-fn explicit_rows(case: &Value) -> Vec<&Value> {
+/// The rows of the solver the case's scene names (its targets are stated for that solver).
+fn scene_solver_rows(case: &Value) -> Vec<&Value> {
     case["rows"]
         .as_array()
-        .map(|rows| rows.iter().filter(|r| r["solver"] == "explicit").collect())
+        .map(|rows| {
+            rows.iter()
+                .filter(|r| r["solver"] == case["scene_solver"])
+                .collect()
+        })
         .unwrap_or_default()
 }
 
 fn targets(cases: &[Value], quick: bool) -> Value {
     let a = find_case(cases, "case-a").map(|c| {
-        let rows: Vec<Value> = explicit_rows(c)
+        let rows: Vec<Value> = scene_solver_rows(c)
             .iter()
             .map(|r| {
                 let s = r["step_seconds"].as_f64().unwrap_or(f64::NAN);
@@ -228,7 +232,7 @@ fn targets(cases: &[Value], quick: bool) -> Value {
         })
     });
     let d = find_case(cases, "case-d").map(|c| {
-        let rows: Vec<Value> = explicit_rows(c)
+        let rows: Vec<Value> = scene_solver_rows(c)
             .iter()
             .map(|r| {
                 let f = r["real_time_factor"].as_f64().unwrap_or(0.0);
@@ -354,7 +358,7 @@ says otherwise). Regenerate with `cargo xtask bench-cases`.\n",
     {
         let others: Vec<f64> = array(case_d, "rows")?
             .iter()
-            .filter(|r| r["solver"] != "explicit")
+            .filter(|r| r["solver"] != case_d["scene_solver"])
             .filter_map(|r| r["real_time_factor"].as_f64())
             .collect();
         if !others.is_empty() {

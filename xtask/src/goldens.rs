@@ -1,5 +1,5 @@
 //! `cargo xtask goldens`: regenerate `fixtures/goldens/case-{a,b,c,d}.json`, the deterministic
-//! results of each built-in case that `crates/fem-cases/tests/goldens.rs` checks.
+//! results of each built-in case that `crates/fem-cases/tests/suite/goldens.rs` checks.
 //!
 //! For each case: `fem2d run CASE --threads 1 -q --out TMP` (the full scene, no overrides),
 //! then a small JSON of the summary's deterministic quantities (no timings) with the tolerance

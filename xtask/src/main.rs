@@ -16,7 +16,7 @@
 //! - `cargo xtask figures`: the paper's Figures 1-5 and the plots into `docs/figures/`
 //!   (`fem2d figures`).
 //! - `cargo xtask goldens`: regenerate `fixtures/goldens/case-{a,b,c,d}.json`, checked by
-//!   `crates/fem-cases/tests/goldens.rs`.
+//!   `crates/fem-cases/tests/suite/goldens.rs`.
 //!
 //! xtask depends on no workspace crate (the layering in `ARCHITECTURE.md`): it drives the
 //! release `fem2d` binary as a subprocess and reads its JSON.
@@ -50,7 +50,7 @@ tasks:
   figures              the paper's Figures 1-5, the probe curves and the case B stability
                        map (PNG and SVG), from `fem2d figures`, into docs/figures/
   goldens              regenerate fixtures/goldens/case-{a,b,c,d}.json (checked by
-                       cargo test -p fem-cases --test goldens)";
+                       cargo test -p fem-cases --test suite goldens)";
 
 fn cargo(args: &[&str]) -> Result<(), String> {
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".to_owned());

@@ -1,6 +1,6 @@
 //! A small log-log line chart in SVG (axes with decade ticks, one coloured polyline with
 //! markers per series, a legend), for the plots `cargo xtask stability` writes. Hand-written
-//! because xtask depends on no plotting stack; the rendering crate will supersede it.
+//! because xtask depends on no workspace crate (the charts of `fem-render` need one).
 
 use std::fmt::Write as _;
 

@@ -38,7 +38,7 @@ pub struct Output {
 }
 
 impl Fem2d {
-    /// `cargo build --release -p fem-cases --bin fem2d`, then the executable cargo reports
+    /// `cargo build --release -p fem2d --bin fem2d`, then the executable cargo reports
     /// (so `CARGO_TARGET_DIR` and `--target-dir` settings are honoured).
     pub fn build() -> Result<Self, String> {
         let cargo = cargo_program();
@@ -46,7 +46,7 @@ impl Fem2d {
             "build",
             "--release",
             "-p",
-            "fem-cases",
+            "fem2d",
             "--bin",
             "fem2d",
             "--message-format=json-render-diagnostics",

@@ -4,6 +4,10 @@
 //!   `cargo metadata`: every workspace crate is listed, every listed crate exists, and each
 //!   crate depends (normally, for building, or for development) on exactly the workspace
 //!   crates its line names.
+//! - The README's crate diagram (the block after `tidy:crates`) names every workspace crate,
+//!   each with exactly the workspace crates it depends on (`[deps: ...]`).
+//! - No code outside `fem-solvers` names a solver: the solver list lives in its registry
+//!   (scene fixtures, docs and tests may name solvers).
 //! - Every path `ARCHITECTURE.md` names in backticks exists.
 //! - Every Rust source file opens with a `//!` doc comment.
 
@@ -103,6 +107,132 @@ fn crate_layering_matches_architecture_md() {
             "ARCHITECTURE.md says {krate} depends on {missing:?}, but it does not: keep it true"
         );
     }
+}
+
+/// The README's crate diagram: `crate ... [deps: a, b]` lines (`[deps: none]` for none).
+fn readme_crates() -> BTreeMap<String, BTreeSet<String>> {
+    let text = std::fs::read_to_string(root().join("README.md")).expect("README.md exists");
+    let start = text
+        .find("tidy:crates")
+        .expect("README.md has a `tidy:crates` block");
+    let block = text[start..]
+        .split("```")
+        .nth(1)
+        .expect("the crate diagram is fenced with ```");
+    let mut map = BTreeMap::new();
+    for line in block.lines().filter(|l| l.contains("[deps:")) {
+        let krate = line.split_whitespace().next().unwrap().to_owned();
+        let deps = line
+            .rsplit_once("[deps:")
+            .unwrap()
+            .1
+            .trim_end()
+            .trim_end_matches(']')
+            .split(',')
+            .map(str::trim)
+            .filter(|d| !d.is_empty() && *d != "none")
+            .map(str::to_owned)
+            .collect();
+        map.insert(krate, deps);
+    }
+    map
+}
+
+#[test]
+fn readme_crate_diagram_matches_cargo_metadata() {
+    let readme = readme_crates();
+    let actual = actual_layering();
+    assert_eq!(
+        readme.keys().collect::<BTreeSet<_>>(),
+        actual.keys().collect::<BTreeSet<_>>(),
+        "README.md's crate diagram must list exactly the workspace crates"
+    );
+    for (krate, deps) in &actual {
+        assert_eq!(
+            &readme[krate], deps,
+            "README.md's crate diagram gives {krate} other dependencies than cargo metadata"
+        );
+    }
+}
+
+/// The names of the solvers, from docs/solvers.md's capability table (first column).
+fn solver_names() -> Vec<String> {
+    let text =
+        std::fs::read_to_string(root().join("docs/solvers.md")).expect("docs/solvers.md exists");
+    let start = text
+        .find("<!-- capabilities:begin -->")
+        .expect("docs/solvers.md has the capability table");
+    let end = text.find("<!-- capabilities:end -->").unwrap();
+    text[start..end]
+        .lines()
+        .filter(|l| l.starts_with('|') && !l.starts_with("|---") && !l.starts_with("| solver"))
+        .filter_map(|l| l.split('|').nth(1))
+        .map(|c| c.trim().trim_matches('`').to_owned())
+        .filter(|c| !c.is_empty())
+        .collect()
+}
+
+#[test]
+fn no_code_outside_fem_solvers_names_a_solver() {
+    let names = solver_names();
+    assert!(names.len() >= 5, "solvers in docs/solvers.md: {names:?}");
+    let mut files = Vec::new();
+    rust_files(&root().join("crates"), &mut files);
+    rust_files(&root().join("xtask/src"), &mut files);
+    let mut offenders = Vec::new();
+    for f in files {
+        let rel = f
+            .strip_prefix(root())
+            .unwrap()
+            .to_string_lossy()
+            .replace('\\', "/");
+        // The registry's own crate, and tests, benches and examples, may name solvers; so may
+        // xtask's forward-Euler scan, a study of the explicit solver's own `scheme` parameter.
+        if rel.starts_with("crates/fem-solvers/")
+            || rel == "xtask/src/table1.rs"
+            || rel.contains("/tests/")
+            || rel.contains("/benches/")
+            || rel.contains("/examples/")
+        {
+            continue;
+        }
+        let text = std::fs::read_to_string(&f).unwrap();
+        for (n, line) in text.lines().enumerate() {
+            let code = line.split("//").next().unwrap_or("");
+            // An obstacle's motion is also called "static"; it is not a solver.
+            if code.contains("Motion") {
+                continue;
+            }
+            for name in &names {
+                // A solver named in code: a string literal `"pbd"` ...
+                let quoted = format!("\"{name}\"");
+                let variant: String = name
+                    .split('-')
+                    .map(|w| {
+                        let mut c = w.chars();
+                        c.next()
+                            .map(|f| f.to_uppercase().collect::<String>() + c.as_str())
+                            .unwrap_or_default()
+                    })
+                    .collect();
+                // ... or its registry variant or its own types (`SolverKind::Pbd`,
+                // `PbdParams`, `PbdStepper`).
+                let is_variant = ["SolverKind::", "SolverParams::", "AnyStepper::"]
+                    .iter()
+                    .any(|p| code.contains(&format!("{p}{variant}")))
+                    || code.contains(&format!("{variant}Params"))
+                    || code.contains(&format!("{variant}Stepper"));
+                if code.contains(&quoted) || is_variant {
+                    offenders.push(format!("{rel}:{}: {}", n + 1, line.trim()));
+                }
+            }
+        }
+    }
+    assert!(
+        offenders.is_empty(),
+        "solvers are named outside fem-solvers (ask the registry instead):\n{}",
+        offenders.join("\n")
+    );
 }
 
 #[test]

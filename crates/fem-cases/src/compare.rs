@@ -1,16 +1,44 @@
 //! The energy x solver matrix on one scene: every combination run from the same scene, one
 //! row each, with the probes' displacements, the peak von Mises stress, the cost and whether
-//! the run stayed stable; optionally several PBD/XPBD iteration counts and both XPBD forms, and
-//! each probe's deviation from the explicit run of the same energy (case C).
+//! the run stayed stable; optionally variants of solver parameters (several iteration counts,
+//! both XPBD constraint forms: any parameter key), and each probe's deviation from the run of
+//! the default solver (explicit) with the same energy (case C).
+//!
+//! Each row is the scene changed as a typed value (energy, solver, parameters), never through
+//! its text.
 
 use std::fmt::Write as _;
 
 use fem_core::energy::EnergyKind;
+use fem_solvers::{Clock, SolverKind};
 use serde::{Deserialize, Serialize};
 
-use crate::error::CaseError;
 use crate::run::{RunOptions, RunResult, run_scene};
-use crate::scene::{LoadedScene, SolverKind, XpbdFormName};
+use fem_scene::SceneError;
+use fem_scene::SolverSpec;
+use fem_scene::scene::LoadedScene;
+
+/// Values of one solver parameter to compare: rows are made for each value, for the solvers
+/// that have the parameter (`iterations` for PBD and XPBD, `xpbd_form` for XPBD).
+#[derive(Clone, Debug, PartialEq)]
+pub struct VariantAxis {
+    /// The parameter's key in the scene's `[solver]` table.
+    pub key: String,
+    /// Its values.
+    pub values: Vec<toml::Value>,
+}
+
+impl VariantAxis {
+    /// The label of one value in a row's variant: `20 it` for an iteration count, the value
+    /// itself otherwise.
+    fn label(&self, value: &toml::Value) -> String {
+        match (self.key.as_str(), value) {
+            ("iterations", toml::Value::Integer(n)) => format!("{n} it"),
+            (_, toml::Value::String(s)) => s.clone(),
+            (_, v) => v.to_string(),
+        }
+    }
+}
 
 /// What to compare.
 #[derive(Clone, Debug)]
@@ -19,10 +47,9 @@ pub struct CompareSpec {
     pub energies: Vec<EnergyKind>,
     /// Solvers.
     pub solvers: Vec<SolverKind>,
-    /// PBD/XPBD iteration counts (empty: the scene's).
-    pub iterations: Vec<usize>,
-    /// XPBD forms (empty: the scene's).
-    pub xpbd_forms: Vec<XpbdFormName>,
+    /// Parameter variants, in label order (empty: the scene's parameters). A solver without
+    /// an axis's key gets one row for that axis.
+    pub variants: Vec<VariantAxis>,
     /// Worker threads per run.
     pub threads: Option<usize>,
     /// Keep each row's run, with every `n`-th frame as a snapshot, in [`Comparison::runs`]
@@ -33,11 +60,11 @@ pub struct CompareSpec {
 /// One combination's result.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct CompareRow {
-    /// Energy name.
-    pub energy: String,
-    /// Solver name.
-    pub solver: String,
-    /// Solver variant (`consistent, 20 it`), empty for explicit.
+    /// The energy (its name in files).
+    pub energy: EnergyKind,
+    /// The solver (its name in files).
+    pub solver: SolverKind,
+    /// Solver variant (`consistent, 20 it`), empty for a solver without variants.
     pub variant: String,
     /// Whether the run finished without blowing up.
     pub stable: bool,
@@ -82,6 +109,8 @@ pub struct Comparison {
     pub scene: String,
     /// Triangles of the mesh.
     pub triangles: usize,
+    /// The solver the scene itself names (the one a case's targets are stated for).
+    pub scene_solver: SolverKind,
     /// Time step, s.
     pub dt: f64,
     /// Steps per run.
@@ -107,13 +136,11 @@ pub struct Curves {
     pub probes: Vec<(String, Vec<[f64; 2]>)>,
 }
 
-/// Run the matrix. `load` builds the scene with extra overrides (the energy, solver and
-/// variant of each combination are passed as `--set`-style overrides).
-pub fn compare(
-    load: &dyn Fn(&[String]) -> Result<LoadedScene, CaseError>,
-    spec: &CompareSpec,
-) -> Result<Comparison, CaseError> {
-    let base = load(&[])?;
+/// Run the matrix on `base`: each row is `base` with the row's energy, solver and variant set
+/// (typed), validated again.
+pub fn compare(base: &LoadedScene, spec: &CompareSpec) -> Result<Comparison, SceneError> {
+    // The reference of the RMS columns: the default solver (explicit) of the same energy.
+    let reference = SolverKind::default();
     let mut rows = Vec::new();
     let mut header = None;
     let mut curves = Vec::new();
@@ -121,13 +148,8 @@ pub fn compare(
     for &energy in &spec.energies {
         let mut explicit: Option<RunResult> = None;
         for &solver in &spec.solvers {
-            for (variant, extra) in variants(solver, spec) {
-                let mut o = vec![
-                    format!("energy=\"{}\"", energy.name()),
-                    format!("solver.kind=\"{}\"", solver.name()),
-                ];
-                o.extend(extra);
-                let outcome = load(&o).and_then(|scene| {
+            for (variant, settings) in variants(solver, spec) {
+                let outcome = variant_scene(base, energy, solver, &settings).and_then(|scene| {
                     run_scene(
                         &scene,
                         &RunOptions {
@@ -169,14 +191,14 @@ pub fn compare(
                                 // no curve to compare with explicit's.
                                 rms_vs_explicit: explicit
                                     .as_ref()
-                                    .filter(|_| solver != SolverKind::Static)
+                                    .filter(|_| solver.capabilities().clock == Clock::Time)
                                     .and_then(|e| e.probe(&p.name))
                                     .map(|reference| rms_distance(series, reference)),
                             })
                             .collect();
                         let row = CompareRow {
-                            energy: energy.name().into(),
-                            solver: solver.name().into(),
+                            energy,
+                            solver,
                             variant: variant.clone(),
                             stable: !s.blew_up,
                             steps_completed: s.steps_completed,
@@ -192,7 +214,7 @@ pub fn compare(
                         if spec.snapshot_every.is_some() {
                             runs.push(Some(result.clone()));
                         }
-                        if solver == SolverKind::Explicit && explicit.is_none() && !s.blew_up {
+                        if solver == reference && explicit.is_none() && !s.blew_up {
                             explicit = Some(result);
                         }
                         row
@@ -203,8 +225,8 @@ pub fn compare(
                             runs.push(None);
                         }
                         CompareRow {
-                            energy: energy.name().into(),
-                            solver: solver.name().into(),
+                            energy,
+                            solver,
                             variant,
                             stable: false,
                             steps_completed: 0,
@@ -227,6 +249,7 @@ pub fn compare(
         header.unwrap_or((0, base.scene.solver.dt, base.scene.solver.steps));
     Ok(Comparison {
         scene: base.scene.name.clone(),
+        scene_solver: base.scene.solver.kind,
         triangles,
         dt,
         steps,
@@ -236,53 +259,54 @@ pub fn compare(
     })
 }
 
-fn variants(solver: SolverKind, spec: &CompareSpec) -> Vec<(String, Vec<String>)> {
-    let iterations: Vec<Option<usize>> = if spec.iterations.is_empty() {
-        vec![None]
-    } else {
-        spec.iterations.iter().copied().map(Some).collect()
-    };
-    let forms: Vec<Option<XpbdFormName>> = if spec.xpbd_forms.is_empty() {
-        vec![None]
-    } else {
-        spec.xpbd_forms.iter().copied().map(Some).collect()
-    };
-    let it = |n: Option<usize>| n.map(|n| format!("solver.iterations={n}"));
-    match solver {
-        SolverKind::Pbd => iterations
-            .iter()
-            .map(|&n| {
-                (
-                    n.map(|n| format!("{n} it")).unwrap_or_default(),
-                    it(n).into_iter().collect(),
-                )
-            })
-            .collect(),
-        SolverKind::Xpbd => forms
-            .iter()
-            .flat_map(|&f| {
-                iterations.iter().map(move |&n| {
-                    let name = match f {
-                        Some(XpbdFormName::Consistent) => "consistent",
-                        Some(XpbdFormName::Literal) => "literal",
-                        None => "",
-                    };
-                    let label = match (name, n) {
-                        ("", None) => String::new(),
-                        ("", Some(n)) => format!("{n} it"),
-                        (f, None) => f.to_owned(),
-                        (f, Some(n)) => format!("{f}, {n} it"),
-                    };
-                    let mut o: Vec<String> = it(n).into_iter().collect();
-                    if !name.is_empty() {
-                        o.push(format!("solver.xpbd_form=\"{name}\""));
-                    }
-                    (label, o)
+/// `base` with the energy, the solver and the parameter settings of one row, validated.
+fn variant_scene(
+    base: &LoadedScene,
+    energy: EnergyKind,
+    solver: SolverKind,
+    settings: &Settings,
+) -> Result<LoadedScene, SceneError> {
+    let mut scene = base.clone();
+    scene.scene.energy = energy;
+    scene.scene.solver.kind = solver;
+    for (key, value) in settings {
+        scene
+            .scene
+            .solver
+            .set(key, value.clone())
+            .map_err(|e| SceneError::Scene(format!("{}: {e}", scene.origin)))?;
+    }
+    scene.validate()?;
+    Ok(scene)
+}
+
+/// Parameter settings of one row: `(key, value)` pairs.
+type Settings = Vec<(String, toml::Value)>;
+
+/// The rows of one solver: `(label, settings)` for each combination of the axes whose key the
+/// solver has (one row with no settings when it has none).
+fn variants(solver: SolverKind, spec: &CompareSpec) -> Vec<(String, Settings)> {
+    let mut rows: Vec<(Vec<String>, Settings)> = vec![(Vec::new(), Vec::new())];
+    for axis in &spec.variants {
+        if axis.values.is_empty() || !SolverSpec::accepts(solver, &axis.key) {
+            continue;
+        }
+        rows = rows
+            .into_iter()
+            .flat_map(|(labels, settings)| {
+                axis.values.iter().map(move |v| {
+                    let mut labels = labels.clone();
+                    labels.push(axis.label(v));
+                    let mut settings = settings.clone();
+                    settings.push((axis.key.clone(), v.clone()));
+                    (labels, settings)
                 })
             })
-            .collect(),
-        _ => vec![(String::new(), Vec::new())],
+            .collect();
     }
+    rows.into_iter()
+        .map(|(labels, settings)| (labels.join(", "), settings))
+        .collect()
 }
 
 /// RMS of `|a_k - b_k|` over the common prefix of two displacement series, m.

@@ -16,16 +16,16 @@ use fem_core::energy::EnergyKind;
 use fem_render::Image;
 use fem_render::chart::{GridCell, GridChart};
 
-use crate::cases::load_case;
 use crate::compare::{CompareSpec, Comparison, compare};
-use crate::error::CaseError;
 use crate::pictures::{
     FieldKind, FramePicture, GifOptions, probe_chart, render_side_by_side, snapshot_at,
     write_chart, write_gif,
 };
 use crate::run::RunResult;
-use crate::scene::SolverKind;
 use crate::sweep::{Merged, parse_sweep};
+use fem_scene::SceneError;
+use fem_scene::cases::load_case;
+use fem_solvers::SolverKind;
 
 /// The runs every figure is drawn from.
 pub struct CaseRuns {
@@ -58,7 +58,7 @@ pub fn run_cases(
     threads: Option<usize>,
     stability: bool,
     mut progress: impl FnMut(&str),
-) -> Result<CaseRuns, CaseError> {
+) -> Result<CaseRuns, SceneError> {
     let mut timings = Vec::new();
     let mut one = |name: &str, energies: &[EnergyKind], solvers: &[SolverKind]| {
         progress(name);
@@ -66,26 +66,28 @@ pub fn run_cases(
         let spec = CompareSpec {
             energies: energies.to_vec(),
             solvers: solvers.to_vec(),
-            iterations: Vec::new(),
-            xpbd_forms: Vec::new(),
+            variants: Vec::new(),
             threads,
             snapshot_every: Some(1),
         };
-        let out = compare(&|o: &[String]| load_case(name, o), &spec);
+        let out = load_case(name, &[]).and_then(|base| compare(&base, &spec));
         timings.push((name.to_owned(), t.elapsed().as_secs_f64()));
         out
     };
-    let a = one("case-a", &PAPER_ENERGIES, &[SolverKind::Explicit])?;
-    let b = one("case-b", &PAPER_ENERGIES, &[SolverKind::Explicit])?;
-    let c = one(
-        "case-c",
-        &[EnergyKind::Stvk],
-        &[SolverKind::Explicit, SolverKind::Pbd, SolverKind::Xpbd],
-    )?;
+    // Cases A and B under the default solver (explicit, the paper's), case C under each of the
+    // paper's frameworks, case D as its scene says.
+    let default = [SolverKind::default()];
+    let paper: Vec<SolverKind> = SolverKind::ALL
+        .into_iter()
+        .filter(|k| k.capabilities().paper)
+        .collect();
+    let a = one("case-a", &PAPER_ENERGIES, &default)?;
+    let b = one("case-b", &PAPER_ENERGIES, &default)?;
+    let c = one("case-c", &[EnergyKind::Stvk], &paper)?;
     let d_scene = load_case("case-d", &[])?;
     let d = one(
         "case-d",
-        &[d_scene.scene.energy.0],
+        &[d_scene.scene.energy],
         &[d_scene.scene.solver.kind],
     )?;
     let stability = if stability {
@@ -108,14 +110,14 @@ pub fn run_cases(
 }
 
 /// Runs the case B stability sweep on two shards at once (one thread each).
-pub fn stability_sweep(threads: Option<usize>) -> Result<Merged, CaseError> {
+pub fn stability_sweep(threads: Option<usize>) -> Result<Merged, SceneError> {
     let sweep = parse_sweep(
         STABILITY_SWEEP,
         "built-in fixtures/sweeps/case-b-stability.toml",
         Path::new("."),
     )?;
     let shards = threads.unwrap_or(2).clamp(1, 2);
-    let parts: Vec<Result<_, CaseError>> = std::thread::scope(|s| {
+    let parts: Vec<Result<_, SceneError>> = std::thread::scope(|s| {
         let handles: Vec<_> = (0..shards)
             .map(|i| {
                 let sweep = &sweep;
@@ -126,7 +128,7 @@ pub fn stability_sweep(threads: Option<usize>) -> Result<Merged, CaseError> {
             .into_iter()
             .map(|h| {
                 h.join()
-                    .unwrap_or_else(|_| Err(CaseError::Io("a sweep shard panicked".into())))
+                    .unwrap_or_else(|_| Err(SceneError::Io("a sweep shard panicked".into())))
             })
             .collect()
     });
@@ -159,8 +161,10 @@ fn runs(c: &Comparison) -> Vec<(String, &RunResult)> {
         .iter()
         .zip(&c.runs)
         .filter_map(|(row, run)| {
-            let label = match (row.solver.as_str(), row.variant.as_str()) {
-                _ if c.rows.iter().all(|r| r.solver == row.solver) => energy_label(&row.energy),
+            let label = match (row.solver, row.variant.as_str()) {
+                _ if c.rows.iter().all(|r| r.solver == row.solver) => {
+                    energy_label(row.energy.name())
+                }
                 (s, "") => solver_label(s),
                 (s, v) => format!("{} ({v})", solver_label(s)),
             };
@@ -181,26 +185,19 @@ pub fn energy_label(name: &str) -> String {
     }
 }
 
-/// Display name of a solver.
-pub fn solver_label(name: &str) -> String {
-    match name {
-        "explicit" => "Explicit FEM".into(),
-        "pbd" => "PBD".into(),
-        "xpbd" => "XPBD".into(),
-        "implicit" => "Implicit Euler".into(),
-        "static" => "Static".into(),
-        other => other.into(),
-    }
+/// Display name of a solver (its capability record's title).
+pub fn solver_label(kind: SolverKind) -> String {
+    kind.capabilities().title.into()
 }
 
-fn write_png(image: &Image, dir: &Path, file: &str) -> Result<(), CaseError> {
+fn write_png(image: &Image, dir: &Path, file: &str) -> Result<(), SceneError> {
     image
         .write_png(&dir.join(file))
-        .map_err(|e| CaseError::Io(format!("{}: {e}", dir.join(file).display())))
+        .map_err(|e| SceneError::Io(format!("{}: {e}", dir.join(file).display())))
 }
 
-fn render_err(e: fem_render::RenderError) -> CaseError {
-    CaseError::Io(format!("rendering: {e}"))
+fn render_err(e: fem_render::RenderError) -> SceneError {
+    SceneError::Io(format!("rendering: {e}"))
 }
 
 /// Side-by-side von Mises pictures of every run at time `t` (one row), sharing `range`.
@@ -210,7 +207,7 @@ fn row_at(
     title: &str,
     panel: (u32, u32),
     range: Option<(f64, f64)>,
-) -> Result<Image, CaseError> {
+) -> Result<Image, SceneError> {
     let pictures: Vec<FramePicture<'_>> = labelled
         .iter()
         .filter_map(|(label, run)| {
@@ -234,10 +231,13 @@ fn range_over(labelled: &[(String, &RunResult)], t0: f64, t1: f64) -> Option<(f6
 }
 
 /// Figure 1: the mesh pipeline's four stages on case D's body.
-pub fn figure_1(dir: &Path) -> Result<Figure, CaseError> {
+pub fn figure_1(dir: &Path) -> Result<Figure, SceneError> {
     let scene = load_case("case-d", &[])?;
-    let out = crate::build::mesh_pipeline(&scene)?
-        .ok_or_else(|| CaseError::Mesh("case-d: its mesh does not come from a model".into()))?;
+    let out =
+        fem_scene::build::mesh_pipeline(&scene, &crate::files::FileSource::for_scene(&scene))?
+            .ok_or_else(|| {
+                SceneError::Mesh("case-d: its mesh does not come from a model".into())
+            })?;
     let params = fem_mesh::preview::PreviewParams {
         height_px: 520,
         margin: 0.05,
@@ -280,9 +280,9 @@ pub fn figure_1(dir: &Path) -> Result<Figure, CaseError> {
 }
 
 /// Figures 2-5 and the plots, from `runs`, into `dir` (created if missing).
-pub fn write_figures(runs_: &CaseRuns, dir: &Path) -> Result<Vec<Figure>, CaseError> {
+pub fn write_figures(runs_: &CaseRuns, dir: &Path) -> Result<Vec<Figure>, SceneError> {
     std::fs::create_dir_all(dir)
-        .map_err(|e| CaseError::Io(format!("{}: cannot create: {e}", dir.display())))?;
+        .map_err(|e| SceneError::Io(format!("{}: cannot create: {e}", dir.display())))?;
     let mut figures = vec![figure_1(dir)?];
 
     // Figure 2: case A at Table 1's frames 50, 120, 200 (t = 0.5, 1.2, 2.0 s).
@@ -304,7 +304,7 @@ pub fn write_figures(runs_: &CaseRuns, dir: &Path) -> Result<Vec<Figure>, CaseEr
         title: "Figure 2: case A, three energies".into(),
         caption: format!(
             "The 5 m x 1 m cantilever falling under gravity (explicit, dt = 1 ms), coloured by von Mises stress on one scale; the grey outline is the rest shape. Deepest tip deflection: {}.",
-            deepest_tips(&runs_.a, |r| energy_label(&r.energy))
+            deepest_tips(&runs_.a, |r| energy_label(r.energy.name()))
         ),
     });
 
@@ -355,7 +355,7 @@ pub fn write_figures(runs_: &CaseRuns, dir: &Path) -> Result<Vec<Figure>, CaseEr
         title: "Figure 4: case C, three solvers".into(),
         caption: format!(
             "The soft cantilever under explicit FEM, PBD and XPBD at the time of explicit's deepest deflection. Deepest tip deflection: {}. PBD's stiffness depends on its iteration count, XPBD's does not.",
-            deepest_tips(&runs_.c, |r| solver_label(&r.solver))
+            deepest_tips(&runs_.c, |r| solver_label(r.solver))
         ),
     });
 
@@ -363,7 +363,7 @@ pub fn write_figures(runs_: &CaseRuns, dir: &Path) -> Result<Vec<Figure>, CaseEr
     let d = runs(&runs_.d);
     let (_, drun) = d
         .first()
-        .ok_or_else(|| CaseError::Io("case D did not run".into()))?;
+        .ok_or_else(|| SceneError::Io("case D did not run".into()))?;
     let s = &drun.summary;
     let first = drun.snapshots.first().expect("a run keeps its first frame");
     let peak = drun
@@ -463,7 +463,7 @@ fn deepest_tips(c: &Comparison, label: impl Fn(&crate::compare::CompareRow) -> S
 }
 
 /// The height of a built-in case's horizontal ground, if it has one.
-fn ground_height(case: &str) -> Result<Option<f64>, CaseError> {
+fn ground_height(case: &str) -> Result<Option<f64>, SceneError> {
     Ok(load_case(case, &[])?
         .scene
         .ground
@@ -471,7 +471,7 @@ fn ground_height(case: &str) -> Result<Option<f64>, CaseError> {
         .and_then(|g| g.height))
 }
 
-fn fmt_mass(scene: &crate::scene::LoadedScene) -> String {
+fn fmt_mass(scene: &fem_scene::scene::LoadedScene) -> String {
     scene
         .scene
         .obstacles
@@ -481,7 +481,7 @@ fn fmt_mass(scene: &crate::scene::LoadedScene) -> String {
 }
 
 /// The stability grid: one row per energy and Young's modulus, one column per time step.
-pub fn stability_chart(merged: &Merged) -> Result<GridChart, CaseError> {
+pub fn stability_chart(merged: &Merged) -> Result<GridChart, SceneError> {
     let keys: Vec<String> = merged
         .spec
         .axes
@@ -494,7 +494,7 @@ pub fn stability_chart(merged: &Merged) -> Result<GridChart, CaseError> {
         pos("material.youngs_modulus"),
         pos("solver.dt"),
     ) else {
-        return Err(CaseError::Usage(
+        return Err(SceneError::Usage(
             "the stability map needs the axes energy, material.youngs_modulus and solver.dt".into(),
         ));
     };
@@ -568,7 +568,7 @@ pub fn stability_chart(merged: &Merged) -> Result<GridChart, CaseError> {
 
 /// Animated GIFs of cases A and B (Neo-Hookean), C (XPBD) and D into `dir`, at most ~100
 /// frames each.
-pub fn write_animations(runs_: &CaseRuns, dir: &Path) -> Result<Vec<Figure>, CaseError> {
+pub fn write_animations(runs_: &CaseRuns, dir: &Path) -> Result<Vec<Figure>, SceneError> {
     let mut out = Vec::new();
     for (c, k, case, what, panel) in [
         (&runs_.a, 2, "case-a", "Case A", (420, 220)),

@@ -11,8 +11,8 @@ use fem_render::chart::{LineChart, Scale, Series};
 use fem_render::colormap::Colormap;
 use fem_render::frame::{FieldValues, FrameStyle, MeshView, Rendered, render};
 
-use crate::error::CaseError;
 use crate::run::{RunResult, Snapshot};
+use fem_scene::SceneError;
 
 /// The field a picture is coloured by.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -242,12 +242,12 @@ pub fn render_side_by_side(
     title: &str,
     panel: (u32, u32),
     range: Option<(f64, f64)>,
-) -> Result<Rendered, CaseError> {
+) -> Result<Rendered, SceneError> {
     let mut st = style(field, title, panel.0, panel.1);
     st.range = range.or_else(|| shared_range(pictures, field));
     st.bounds = pictures.iter().map(|p| p.bounds()).reduce(union);
     let views: Vec<MeshView<'_>> = pictures.iter().map(|p| p.view()).collect();
-    render(&views, &st).map_err(|e| CaseError::Io(format!("rendering \"{title}\": {e}")))
+    render(&views, &st).map_err(|e| SceneError::Io(format!("rendering \"{title}\": {e}")))
 }
 
 /// Options of a run's animation.
@@ -285,9 +285,9 @@ impl Default for GifOptions {
 
 /// Writes the run's snapshots as an animated GIF at `path` (one colour range and one world
 /// window for the whole animation, so colours and positions compare across frames).
-pub fn write_gif(run: &RunResult, path: &Path, options: &GifOptions) -> Result<usize, CaseError> {
+pub fn write_gif(run: &RunResult, path: &Path, options: &GifOptions) -> Result<usize, SceneError> {
     if run.snapshots.is_empty() {
-        return Err(CaseError::Usage(format!(
+        return Err(SceneError::Usage(format!(
             "{}: the run kept no frames to animate",
             path.display()
         )));
@@ -310,7 +310,7 @@ pub fn write_gif(run: &RunResult, path: &Path, options: &GifOptions) -> Result<u
     st.range = shared_range(&refs, options.field);
     st.bounds = pictures.iter().map(|p| p.bounds()).reduce(union);
     st.wireframe = options.wireframe;
-    let io = |e: fem_render::RenderError| CaseError::Io(format!("{}: {e}", path.display()));
+    let io = |e: fem_render::RenderError| SceneError::Io(format!("{}: {e}", path.display()));
     let mut writer = None;
     for p in &pictures {
         st.time_label = Some(time_label(run, p.time));
@@ -336,9 +336,9 @@ pub fn write_gif(run: &RunResult, path: &Path, options: &GifOptions) -> Result<u
     Ok(frames)
 }
 
-/// "t = 0.120 s", or "load 0.40" for a static run (whose frames are load increments).
+/// "t = 0.120 s", or "load 0.40" for a load-stepping run (whose frames are load increments).
 pub fn time_label(run: &RunResult, time: f64) -> String {
-    if run.summary.solver == "static" {
+    if run.summary.solver.capabilities().clock == fem_solvers::Clock::LoadFactor {
         format!("load {time:.2}")
     } else {
         format!("t = {time:.3} s")
@@ -386,8 +386,8 @@ pub fn write_chart(
     stem: &str,
     svg: Result<String, fem_render::RenderError>,
     png: Result<Image, fem_render::RenderError>,
-) -> Result<(), CaseError> {
-    let io = |e: fem_render::RenderError| CaseError::Io(format!("{}/{stem}: {e}", dir.display()));
+) -> Result<(), SceneError> {
+    let io = |e: fem_render::RenderError| SceneError::Io(format!("{}/{stem}: {e}", dir.display()));
     crate::run::write_atomic(
         &dir.join(format!("{stem}.svg")),
         svg.map_err(io)?.as_bytes(),

@@ -17,10 +17,10 @@ use std::time::Instant;
 
 use base64::Engine as _;
 
-use crate::error::CaseError;
 use crate::figures::{CaseRuns, Figure, run_cases, write_animations, write_figures};
 use crate::run::write_atomic;
 use crate::table1::table1;
+use fem_scene::SceneError;
 
 /// How to build the report.
 #[derive(Clone, Debug)]
@@ -33,6 +33,9 @@ pub struct ReportOptions {
     pub animations: bool,
     /// The command line, shown in the metadata.
     pub command: String,
+    /// When the report was made, shown in the metadata (the caller formats it, e.g. RFC 3339
+    /// UTC `2026-11-22T10:50:55Z`).
+    pub date: String,
 }
 
 impl Default for ReportOptions {
@@ -42,6 +45,7 @@ impl Default for ReportOptions {
             stability: true,
             animations: true,
             command: "fem2d report".into(),
+            date: String::new(),
         }
     }
 }
@@ -64,11 +68,11 @@ pub fn write_report(
     dir: &Path,
     options: &ReportOptions,
     mut progress: impl FnMut(&str),
-) -> Result<ReportSummary, CaseError> {
+) -> Result<ReportSummary, SceneError> {
     let start = Instant::now();
     let figures_dir = dir.join("figures");
     std::fs::create_dir_all(&figures_dir).map_err(|e| {
-        CaseError::Io(format!(
+        SceneError::Io(format!(
             "{}: cannot create the output directory: {e}",
             figures_dir.display()
         ))
@@ -197,9 +201,9 @@ pub fn markdown_tables_to_html(md: &str) -> String {
     out
 }
 
-fn data_uri(path: &Path) -> Result<String, CaseError> {
+fn data_uri(path: &Path) -> Result<String, SceneError> {
     let bytes = std::fs::read(path)
-        .map_err(|e| CaseError::Io(format!("{}: cannot read: {e}", path.display())))?;
+        .map_err(|e| SceneError::Io(format!("{}: cannot read: {e}", path.display())))?;
     let mime = match path.extension().and_then(|e| e.to_str()) {
         Some("gif") => "image/gif",
         Some("svg") => "image/svg+xml",
@@ -211,7 +215,7 @@ fn data_uri(path: &Path) -> Result<String, CaseError> {
     ))
 }
 
-fn figure_html(out: &mut String, f: &Figure, dir: &Path) -> Result<(), CaseError> {
+fn figure_html(out: &mut String, f: &Figure, dir: &Path) -> Result<(), SceneError> {
     let _ = writeln!(
         out,
         "<figure><img src=\"{}\" alt=\"{}\"><figcaption><b>{}.</b> {} <span class=\"note\">(<code>figures/{}</code>)</span></figcaption></figure>",
@@ -261,11 +265,6 @@ fn machine() -> Vec<(String, String)> {
     ]
 }
 
-/// Now, as RFC 3339 UTC (`2026-11-22T10:50:55Z`).
-fn utc_now() -> String {
-    humantime::format_rfc3339_seconds(std::time::SystemTime::now()).to_string()
-}
-
 #[allow(clippy::too_many_arguments)]
 fn page(
     table: &crate::table1::Table1,
@@ -276,7 +275,7 @@ fn page(
     options: &ReportOptions,
     timings: &[(String, f64)],
     start: Instant,
-) -> Result<String, CaseError> {
+) -> Result<String, SceneError> {
     let mut h = String::new();
     h.push_str("<h2 id=\"table1\">Table 1: case A, tip displacement</h2>\n");
     h.push_str(&markdown_tables_to_html(&table.to_markdown()));
@@ -385,7 +384,7 @@ fn page(
         head,
         "<h1>fem2d report</h1>\n<p>2D energy-based FEM elastodynamics: the paper's cases A-D regenerated with fem2d {} on {}. Every number and picture on this page was computed by the command <code>{}</code> in {:.1} s.</p>",
         env!("CARGO_PKG_VERSION"),
-        utc_now(),
+        escape(&options.date),
         escape(&options.command),
         start.elapsed().as_secs_f64()
     );

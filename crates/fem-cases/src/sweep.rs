@@ -28,9 +28,9 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use crate::cases::load_case_or_file;
-use crate::error::CaseError;
+use crate::files::load_case_or_file;
 use crate::run::{RunOptions, RunResult, Summary, run_scene, write_atomic};
+use fem_scene::SceneError;
 
 /// A sweep spec as written.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -128,23 +128,23 @@ pub struct ShardFile {
 }
 
 /// Parse a spec's text.
-pub fn parse_sweep(text: &str, origin: &str, base_dir: &Path) -> Result<Sweep, CaseError> {
+pub fn parse_sweep(text: &str, origin: &str, base_dir: &Path) -> Result<Sweep, SceneError> {
     let spec: SweepSpec = toml::from_str(text).map_err(|e: toml::de::Error| {
-        CaseError::Scene(format!(
+        SceneError::Scene(format!(
             "{origin}: {}",
             e.message().trim().replace('\n', " ")
         ))
     })?;
     if spec.axes.is_empty() {
-        return Err(CaseError::Scene(format!(
+        return Err(SceneError::Scene(format!(
             "{origin}: axis: at least one [[axis]] is needed"
         )));
     }
     for (i, a) in spec.axes.iter().enumerate() {
         let keys =
-            axis_keys(a).map_err(|m| CaseError::Scene(format!("{origin}: axis.{i}: {m}")))?;
+            axis_keys(a).map_err(|m| SceneError::Scene(format!("{origin}: axis.{i}: {m}")))?;
         if a.values.is_empty() {
-            return Err(CaseError::Scene(format!(
+            return Err(SceneError::Scene(format!(
                 "{origin}: axis.{i}.values: must not be empty"
             )));
         }
@@ -153,7 +153,7 @@ pub fn parse_sweep(text: &str, origin: &str, base_dir: &Path) -> Result<Sweep, C
                 match v.as_array() {
                     Some(t) if t.len() == keys.len() => {}
                     _ => {
-                        return Err(CaseError::Scene(format!(
+                        return Err(SceneError::Scene(format!(
                             "{origin}: axis.{i}.values.{k} = {v}: must be an array of {} values (one per key)",
                             keys.len()
                         )));
@@ -164,7 +164,7 @@ pub fn parse_sweep(text: &str, origin: &str, base_dir: &Path) -> Result<Sweep, C
     }
     if let Some(d) = spec.duration {
         if !(d.is_finite() && d > 0.0) {
-            return Err(CaseError::Scene(format!(
+            return Err(SceneError::Scene(format!(
                 "{origin}: duration = {d}: must be a finite number > 0 (s)"
             )));
         }
@@ -179,9 +179,9 @@ pub fn parse_sweep(text: &str, origin: &str, base_dir: &Path) -> Result<Sweep, C
 }
 
 /// Read a spec file.
-pub fn load_sweep(path: &Path) -> Result<Sweep, CaseError> {
+pub fn load_sweep(path: &Path) -> Result<Sweep, SceneError> {
     let text = std::fs::read_to_string(path).map_err(|e| {
-        CaseError::Io(format!(
+        SceneError::Io(format!(
             "{}: cannot read the sweep spec: {e}",
             path.display()
         ))
@@ -254,14 +254,14 @@ impl Sweep {
     }
 
     fn scene_arg(&self) -> String {
-        if crate::cases::case_text(&self.spec.scene).is_some() {
+        if fem_scene::cases::case_text(&self.spec.scene).is_some() {
             self.spec.scene.clone()
         } else {
             self.base_dir.join(&self.spec.scene).display().to_string()
         }
     }
 
-    fn load(&self, overrides: &[String]) -> Result<crate::scene::LoadedScene, CaseError> {
+    fn load(&self, overrides: &[String]) -> Result<fem_scene::scene::LoadedScene, SceneError> {
         load_case_or_file(&self.scene_arg(), overrides).map(|mut scene| {
             if let Some(d) = self.spec.duration {
                 scene.scene.solver.steps = (d / scene.scene.solver.dt).ceil().max(1.0) as u64;
@@ -275,7 +275,7 @@ impl Sweep {
         &self,
         overrides: &[String],
         threads: Option<usize>,
-    ) -> Result<RunResult, CaseError> {
+    ) -> Result<RunResult, SceneError> {
         let scene = self.load(overrides)?;
         run_scene(
             &scene,
@@ -348,9 +348,9 @@ impl Sweep {
         of: usize,
         threads: Option<usize>,
         mut progress: impl FnMut(&JobResult),
-    ) -> Result<ShardFile, CaseError> {
+    ) -> Result<ShardFile, SceneError> {
         if of == 0 || shard >= of {
-            return Err(CaseError::Usage(format!(
+            return Err(SceneError::Usage(format!(
                 "--shard {shard}/{of}: expected i/n with 0 <= i < n"
             )));
         }
@@ -454,21 +454,21 @@ pub struct Merged {
 
 /// Read shard files and join them. Fails (one line) on files from different specs, a job
 /// present twice with different results, or missing jobs (listing the first few).
-pub fn merge(paths: &[PathBuf]) -> Result<Merged, CaseError> {
+pub fn merge(paths: &[PathBuf]) -> Result<Merged, SceneError> {
     if paths.is_empty() {
-        return Err(CaseError::Usage("merge: no shard files given".into()));
+        return Err(SceneError::Usage("merge: no shard files given".into()));
     }
     let mut first: Option<(String, SweepSpec, usize, PathBuf)> = None;
     let mut by_index: BTreeMap<usize, JobResult> = BTreeMap::new();
     for path in paths {
         let bytes = std::fs::read(path).map_err(|e| {
-            CaseError::Io(format!(
+            SceneError::Io(format!(
                 "{}: cannot read the shard file: {e}",
                 path.display()
             ))
         })?;
         let shard: ShardFile = serde_json::from_slice(&bytes).map_err(|e| {
-            CaseError::Scene(format!("{}: not a sweep shard file: {e}", path.display()))
+            SceneError::Scene(format!("{}: not a sweep shard file: {e}", path.display()))
         })?;
         match &first {
             None => {
@@ -481,7 +481,7 @@ pub fn merge(paths: &[PathBuf]) -> Result<Merged, CaseError> {
             }
             Some((digest, _, total, p0)) => {
                 if *digest != shard.digest || *total != shard.total_jobs {
-                    return Err(CaseError::Scene(format!(
+                    return Err(SceneError::Scene(format!(
                         "{}: digest = {}: comes from a different sweep spec than {} (digest {digest})",
                         path.display(),
                         shard.digest,
@@ -493,7 +493,7 @@ pub fn merge(paths: &[PathBuf]) -> Result<Merged, CaseError> {
         let total = first.as_ref().map_or(0, |f| f.2);
         for r in shard.results {
             if r.job.index >= total {
-                return Err(CaseError::Scene(format!(
+                return Err(SceneError::Scene(format!(
                     "{}: results.job.index = {}: out of range (the sweep has {total} jobs)",
                     path.display(),
                     r.job.index
@@ -505,7 +505,7 @@ pub fn merge(paths: &[PathBuf]) -> Result<Merged, CaseError> {
                     || prev.summary.as_ref().map(|s| s.blew_up)
                         != r.summary.as_ref().map(|s| s.blew_up)
                 {
-                    return Err(CaseError::Scene(format!(
+                    return Err(SceneError::Scene(format!(
                         "{}: job {} appears twice with different results",
                         path.display(),
                         r.job.index
@@ -520,7 +520,7 @@ pub fn merge(paths: &[PathBuf]) -> Result<Merged, CaseError> {
     let missing: Vec<usize> = (0..total).filter(|i| !by_index.contains_key(i)).collect();
     if !missing.is_empty() {
         let shown: Vec<String> = missing.iter().take(10).map(|i| i.to_string()).collect();
-        return Err(CaseError::Scene(format!(
+        return Err(SceneError::Scene(format!(
             "merge: {} of {total} jobs are missing (first: {}); run the missing shards",
             missing.len(),
             shown.join(", ")
@@ -773,8 +773,8 @@ pub struct StabilityRow {
 }
 
 /// Write a shard file atomically.
-pub fn write_shard(path: &Path, shard: &ShardFile) -> Result<(), CaseError> {
+pub fn write_shard(path: &Path, shard: &ShardFile) -> Result<(), SceneError> {
     let text = serde_json::to_string(shard)
-        .map_err(|e| CaseError::Io(format!("{}: {e}", path.display())))?;
+        .map_err(|e| SceneError::Io(format!("{}: {e}", path.display())))?;
     write_atomic(path, text.as_bytes())
 }

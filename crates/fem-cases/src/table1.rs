@@ -10,9 +10,10 @@ use std::fmt::Write as _;
 use fem_core::energy::EnergyKind;
 use serde::{Deserialize, Serialize};
 
-use crate::cases::load_case;
-use crate::error::CaseError;
 use crate::run::{RunOptions, RunResult, run_scene};
+use fem_mesh::structured::Diagonal;
+use fem_scene::SceneError;
+use fem_scene::cases::load_case;
 
 /// The frames of Table 1.
 pub const FRAMES: [u64; 4] = [10, 50, 120, 200];
@@ -93,10 +94,10 @@ pub fn ordering_holds(mm: &[[f64; 4]; 3], frame: usize, min_gap: f64) -> bool {
 }
 
 /// The tip's downward displacement (mm) at [`FRAMES`] from a case A run.
-pub fn tip_mm(result: &RunResult) -> Result<[f64; 4], CaseError> {
+pub fn tip_mm(result: &RunResult) -> Result<[f64; 4], SceneError> {
     let series = result
         .probe("tip")
-        .ok_or_else(|| CaseError::Scene("case-a: the scene has no probe named `tip`".into()))?;
+        .ok_or_else(|| SceneError::Scene("case-a: the scene has no probe named `tip`".into()))?;
     let mut out = [f64::NAN; 4];
     for (k, frame) in FRAMES.iter().enumerate() {
         let step = frame * STEPS_PER_FRAME;
@@ -105,7 +106,7 @@ pub fn tip_mm(result: &RunResult) -> Result<[f64; 4], CaseError> {
             .iter()
             .position(|(s, _)| *s == step)
             .ok_or_else(|| {
-                CaseError::Scene(format!(
+                SceneError::Scene(format!(
                     "case-a: no frame recorded at step {step} (output.frame_every must divide {step} and the run must reach it)"
                 ))
             })?;
@@ -119,15 +120,15 @@ pub fn table1(
     overrides: &[String],
     repeats: usize,
     threads: Option<usize>,
-) -> Result<Table1, CaseError> {
+) -> Result<Table1, SceneError> {
     let mut rows = Vec::new();
     let mut mm = [[0.0; 4]; 3];
     let mut setting = String::new();
     let mut used_threads = 0;
+    let base = load_case("case-a", overrides)?;
     for (r, energy) in ENERGIES.iter().enumerate() {
-        let mut o = overrides.to_vec();
-        o.push(format!("energy=\"{}\"", energy.name()));
-        let scene = load_case("case-a", &o)?;
+        let mut scene = base.clone();
+        scene.scene.energy = *energy;
         if setting.is_empty() {
             setting = describe_setting(&scene);
         }
@@ -140,7 +141,7 @@ pub fn table1(
         for _ in 0..repeats.max(1) {
             let result = run_scene(&scene, &options)?;
             if let Some(m) = &result.summary.blow_up_message {
-                return Err(CaseError::BlowUp(m.clone()));
+                return Err(SceneError::BlowUp(m.clone()));
             }
             best = best.min(result.summary.step_seconds);
             used_threads = result.summary.threads;
@@ -172,13 +173,10 @@ pub fn table1(
     })
 }
 
-fn describe_setting(scene: &crate::scene::LoadedScene) -> String {
+fn describe_setting(scene: &fem_scene::scene::LoadedScene) -> String {
     let s = &scene.scene;
     let m = &s.mesh;
-    let diag = m
-        .diagonal
-        .map(|d| format!("{d:?}").to_lowercase())
-        .unwrap_or_else(|| "right".into());
+    let diag = m.diagonal.unwrap_or_default().name();
     let tip = s
         .probes
         .iter()
@@ -189,12 +187,12 @@ fn describe_setting(scene: &crate::scene::LoadedScene) -> String {
         "mesh {}x{} cells, {diag} diagonals; damping c = {} 1/s; tip node nearest {tip} m; dt = {:e} s; gravity {} m/s^2; {}",
         m.nx.unwrap_or(0),
         m.ny.unwrap_or(0),
-        s.solver.damping,
+        damping_of(scene),
         s.solver.dt,
         -s.gravity[1],
         match s.material.plane {
-            crate::scene::PlaneName::PlaneStrain => "plane strain",
-            crate::scene::PlaneName::PlaneStress => "plane stress",
+            fem_core::PlaneModel::PlaneStrain => "plane strain",
+            fem_core::PlaneModel::PlaneStress => "plane stress",
         }
     )
 }
@@ -289,7 +287,7 @@ impl Table1 {
 pub struct CalibrationRow {
     /// Cells along x and y.
     pub cells: [usize; 2],
-    /// Diagonal pattern.
+    /// Diagonal pattern (its name in scene files).
     pub diagonal: String,
     /// Damping, 1/s.
     pub damping: f64,
@@ -310,8 +308,8 @@ pub struct CalibrationRow {
 pub struct CalibrationGrid {
     /// Cells `(nx, ny)`.
     pub cells: Vec<[usize; 2]>,
-    /// Diagonal patterns (scene names).
-    pub diagonals: Vec<String>,
+    /// Diagonal patterns.
+    pub diagonals: Vec<Diagonal>,
     /// Damping values, 1/s.
     pub damping: Vec<f64>,
     /// Tip points, m.
@@ -322,9 +320,7 @@ impl Default for CalibrationGrid {
     fn default() -> Self {
         CalibrationGrid {
             cells: vec![[10, 2], [15, 3], [20, 4], [25, 5], [10, 4], [15, 4]],
-            diagonals: ["right", "left", "alternating", "crossed"]
-                .map(String::from)
-                .to_vec(),
+            diagonals: Diagonal::ALL.to_vec(),
             damping: vec![0.0, 0.05, 0.1, 0.15, 0.175, 0.2, 0.3, 0.5],
             tips: vec![[5.0, 0.0], [5.0, 0.5], [5.0, 1.0]],
         }
@@ -336,8 +332,8 @@ impl Default for CalibrationGrid {
 pub struct Setting {
     /// Cells `(nx, ny)`.
     pub cells: [usize; 2],
-    /// Diagonal pattern (scene name).
-    pub diagonal: String,
+    /// Diagonal pattern.
+    pub diagonal: Diagonal,
     /// Damping, 1/s.
     pub damping: f64,
     /// Tip point, m.
@@ -345,7 +341,7 @@ pub struct Setting {
 }
 
 /// Evaluate one setting: the three energies' tip displacements and the scores.
-pub fn evaluate(setting: &Setting) -> Result<CalibrationRow, CaseError> {
+pub fn evaluate(setting: &Setting) -> Result<CalibrationRow, SceneError> {
     let Setting {
         cells: [nx, ny],
         diagonal,
@@ -353,17 +349,22 @@ pub fn evaluate(setting: &Setting) -> Result<CalibrationRow, CaseError> {
         tip,
     } = setting.clone();
     let mut mm = [[f64::NAN; 4]; 3];
+    let base = load_case("case-a", &[])?;
     for (r, energy) in ENERGIES.iter().enumerate() {
-        let o = vec![
-            format!("mesh.nx={nx}"),
-            format!("mesh.ny={ny}"),
-            format!("mesh.diagonal=\"{diagonal}\""),
-            format!("solver.damping={damping}"),
-            format!("probes.0.point=[{}, {}]", tip[0], tip[1]),
-            format!("energy=\"{}\"", energy.name()),
-            "output.frames=false".into(),
-        ];
-        let scene = load_case("case-a", &o)?;
+        let mut scene = base.clone();
+        let s = &mut scene.scene;
+        s.mesh.nx = Some(nx);
+        s.mesh.ny = Some(ny);
+        s.mesh.diagonal = Some(diagonal);
+        s.solver
+            .set("damping", damping)
+            .map_err(|e| SceneError::Scene(format!("{}: {e}", scene.origin)))?;
+        if let Some(p) = scene.scene.probes.first_mut() {
+            p.point = tip;
+        }
+        scene.scene.energy = *energy;
+        scene.scene.output.frames = false;
+        scene.validate()?;
         let result = run_scene(&scene, &RunOptions::default())?;
         if !result.summary.blew_up {
             mm[r] = tip_mm(&result)?;
@@ -382,7 +383,7 @@ pub fn evaluate(setting: &Setting) -> Result<CalibrationRow, CaseError> {
     let rms = (rel.iter().map(|d| d * d).sum::<f64>() / rel.len() as f64).sqrt();
     Ok(CalibrationRow {
         cells: [nx, ny],
-        diagonal,
+        diagonal: diagonal.name().into(),
         damping,
         tip,
         mm,
@@ -395,7 +396,7 @@ pub fn evaluate(setting: &Setting) -> Result<CalibrationRow, CaseError> {
 /// Run the scan (every combination of the grid, three energies each), best first: settings
 /// whose ordering holds (gaps of at least 3 mm at frames 120 and 200, where the paper's are
 /// 7-68 mm, so a sub-millimetre tie does not count), then by RMS relative difference.
-pub fn calibrate(grid: &CalibrationGrid) -> Result<Vec<CalibrationRow>, CaseError> {
+pub fn calibrate(grid: &CalibrationGrid) -> Result<Vec<CalibrationRow>, SceneError> {
     let mut rows = Vec::new();
     for &cells in &grid.cells {
         for diagonal in &grid.diagonals {
@@ -403,7 +404,7 @@ pub fn calibrate(grid: &CalibrationGrid) -> Result<Vec<CalibrationRow>, CaseErro
                 for &tip in &grid.tips {
                     rows.push(evaluate(&Setting {
                         cells,
-                        diagonal: diagonal.clone(),
+                        diagonal: *diagonal,
                         damping,
                         tip,
                     })?);
@@ -420,16 +421,13 @@ pub fn calibrate(grid: &CalibrationGrid) -> Result<Vec<CalibrationRow>, CaseErro
 }
 
 /// The scene's own setting (`case-a` with `overrides`).
-pub fn scene_setting(overrides: &[String]) -> Result<Setting, CaseError> {
+pub fn scene_setting(overrides: &[String]) -> Result<Setting, SceneError> {
     let scene = load_case("case-a", overrides)?;
     let s = &scene.scene;
     Ok(Setting {
         cells: [s.mesh.nx.unwrap_or(1), s.mesh.ny.unwrap_or(1)],
-        diagonal: serde_json::to_value(s.mesh.diagonal.unwrap_or_default())
-            .ok()
-            .and_then(|v| v.as_str().map(str::to_owned))
-            .unwrap_or_else(|| "right".into()),
-        damping: s.solver.damping,
+        diagonal: s.mesh.diagonal.unwrap_or_default(),
+        damping: damping_of(&scene),
         tip: s
             .probes
             .iter()
@@ -440,9 +438,9 @@ pub fn scene_setting(overrides: &[String]) -> Result<Setting, CaseError> {
 
 /// One-factor-at-a-time sensitivity around `base`: for each factor of `grid`, the table of
 /// every value with the other factors held at `base`. Markdown.
-pub fn sensitivity(base: &Setting, grid: &CalibrationGrid) -> Result<String, CaseError> {
+pub fn sensitivity(base: &Setting, grid: &CalibrationGrid) -> Result<String, SceneError> {
     let mut out = String::new();
-    let mut section = |title: &str, settings: Vec<Setting>| -> Result<(), CaseError> {
+    let mut section = |title: &str, settings: Vec<Setting>| -> Result<(), SceneError> {
         let rows = settings
             .iter()
             .map(evaluate)
@@ -466,7 +464,7 @@ pub fn sensitivity(base: &Setting, grid: &CalibrationGrid) -> Result<String, Cas
         grid.diagonals
             .iter()
             .map(|d| Setting {
-                diagonal: d.clone(),
+                diagonal: *d,
                 ..base.clone()
             })
             .collect(),
@@ -525,4 +523,14 @@ pub fn calibration_markdown(rows: &[CalibrationRow], top: usize) -> String {
         );
     }
     out
+}
+
+/// The damping rate of the scene's solver (its `damping` parameter), 1/s; 0 when it has none.
+fn damping_of(scene: &fem_scene::scene::LoadedScene) -> f64 {
+    scene
+        .scene
+        .solver
+        .get("damping")
+        .and_then(|v| v.as_float())
+        .unwrap_or(0.0)
 }

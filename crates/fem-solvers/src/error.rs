@@ -106,6 +106,12 @@ pub enum SolverError {
         /// Why the last attempt failed.
         reason: String,
     },
+    /// A solver name is not one of [`SolverKind::ALL`](crate::SolverKind::ALL).
+    #[error(
+        "unknown solver `{0}` (expected one of: {names})",
+        names = crate::registry::solver_names()
+    )]
+    UnknownSolver(String),
     /// A rigid body's pose or velocity became NaN or infinite.
     #[error("step {step}: rigid body of obstacles[{body}] became non-finite")]
     NonFiniteBody {
@@ -149,6 +155,28 @@ pub(crate) fn check_non_negative(field: &str, value: Real) -> Result<(), SolverE
             field,
             value,
             "must be a finite number >= 0",
+        ))
+    }
+}
+
+/// `Ok` when `n >= 1`.
+pub(crate) fn check_count(field: &str, n: usize) -> Result<(), SolverError> {
+    if n >= 1 {
+        Ok(())
+    } else {
+        Err(SolverError::invalid(field, n, "must be at least 1"))
+    }
+}
+
+/// `Ok` when `value` lies in the open interval `(0, 2)` (a relaxation factor).
+pub(crate) fn check_relaxation(field: &str, value: Real) -> Result<(), SolverError> {
+    if value > 0.0 && value < 2.0 {
+        Ok(())
+    } else {
+        Err(SolverError::invalid(
+            field,
+            value,
+            "must lie in the open interval (0, 2)",
         ))
     }
 }

@@ -4,7 +4,7 @@
 //! With `a = M^-1 (f + f_ext) + g` and `decay = exp(-c dt)` ([`ExplicitParams::damping`] = `c`,
 //! 1/s), per free vertex:
 //! - **symplectic Euler** (default): `v' = (v + dt a) decay`, `x' = x + dt v'` (the position
-//!   uses the new, damped velocity, as the peer implementations do);
+//!   uses the new, damped velocity);
 //! - **forward Euler** (Algorithm I as printed, line 9): `x' = x + dt v`, `v' = (v + dt a) decay`.
 //!
 //! Kinematic vertices follow their schedule; dynamic rigid bodies are advanced by the same
@@ -14,31 +14,44 @@
 //! buffers and only swapped into the state when every value is finite; otherwise the step
 //! returns [`SolverError::NonFinite`] naming the step and the first bad vertex, and the state is
 //! left at the last good step.
+//!
+//! Registered as `explicit` ([`Solver`]); scene keys `dt`, `damping`, `scheme`
+//! (`"symplectic"` | `"forward-euler"`).
 
 use fem_core::energy::Energy;
 use fem_core::math::{Real, Vec2};
 use rayon::prelude::*;
 
+use crate::commit::{Kinematic, StepEnd};
 use crate::contact::{ObstacleMotion, Wrench, accumulate_penalty_forces};
 use crate::error::{SolverError, check_non_negative, check_positive};
 use crate::kernel::{self, VERTEX_CHUNK};
 use crate::model::{Model, TimeStepCheck};
+use crate::registry::{Capabilities, Clock, Solver};
 use crate::report::StepReport;
 use crate::state::State;
-use crate::{Stepper, check_finite, check_step_inputs};
+use crate::{Stepper, check_step_inputs};
 
-/// Which explicit update.
+/// Which explicit update. Serde names: `symplectic`, `forward-euler`.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum ExplicitScheme {
     /// `x' = x + dt v'` (uses the new velocity). Default.
     #[default]
+    #[cfg_attr(feature = "serde", serde(rename = "symplectic"))]
     SymplecticEuler,
     /// `x' = x + dt v` (uses the old velocity): Algorithm I line 9 as printed.
+    #[cfg_attr(feature = "serde", serde(rename = "forward-euler"))]
     ForwardEuler,
 }
 
-/// Parameters of [`ExplicitStepper`].
+/// Parameters of [`ExplicitStepper`] (scene keys `dt`, `damping`, `scheme`).
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(default)
+)]
 pub struct ExplicitParams {
     /// Time step, s (finite, > 0). Default `1e-3` (case A).
     pub dt: Real,
@@ -59,10 +72,15 @@ impl Default for ExplicitParams {
 }
 
 impl ExplicitParams {
-    /// Check every field.
+    /// Check every field; errors name `explicit.<field>`.
     pub fn validate(&self) -> Result<(), SolverError> {
-        check_positive("explicit.dt", self.dt)?;
-        check_non_negative("explicit.damping", self.damping)
+        self.validate_as(ExplicitStepper::NAME)
+    }
+
+    /// Check every field; errors name `<prefix>.<field>`.
+    pub fn validate_as(&self, prefix: &str) -> Result<(), SolverError> {
+        check_positive(&format!("{prefix}.dt"), self.dt)?;
+        check_non_negative(&format!("{prefix}.damping"), self.damping)
     }
 }
 
@@ -164,7 +182,7 @@ impl Stepper for ExplicitStepper {
             0
         };
 
-        let all_finite = integrate(
+        let known_finite = integrate(
             self.params.scheme,
             dt,
             self.decay,
@@ -176,19 +194,6 @@ impl Stepper for ExplicitStepper {
             &mut self.x_new,
             &mut self.v_new,
         );
-        model
-            .kinematics()
-            .apply(t, dt, &state.x, &mut self.x_new, &mut self.v_new);
-        if !all_finite {
-            check_finite(
-                state.step,
-                t,
-                &self.x_new,
-                &self.v_new,
-                inv.inverted,
-                inv.min_det_f,
-            )?;
-        }
         self.bodies_new.clone_from(&state.bodies);
         for (o, (obs, body)) in model
             .obstacles()
@@ -214,19 +219,54 @@ impl Stepper for ExplicitStepper {
                     body.angle += om_used * dt;
                 }
             }
-            if !body.is_finite() {
-                return Err(SolverError::NonFiniteBody {
-                    step: state.step,
-                    body: o,
-                });
-            }
         }
-        std::mem::swap(&mut state.bodies, &mut self.bodies_new);
-        std::mem::swap(&mut state.x, &mut self.x_new);
-        std::mem::swap(&mut state.v, &mut self.v_new);
-        state.t += dt;
-        state.step += 1;
+        StepEnd {
+            kinematics: Kinematic::Schedule { t, dt },
+            x: &mut self.x_new,
+            v: &mut self.v_new,
+            bodies: Some(&mut self.bodies_new),
+            known_finite,
+            inverted: inv.inverted,
+            min_det_f: inv.min_det_f,
+            t_end: t + dt,
+            count_step: true,
+        }
+        .commit(model, state, || Ok(()))?;
         Ok(StepReport::explicit(inv.min_det_f, inv.inverted, contacts))
+    }
+}
+
+impl Solver for ExplicitStepper {
+    type Params = ExplicitParams;
+    const NAME: &'static str = "explicit";
+    const CAPABILITIES: Capabilities = Capabilities {
+        title: "Explicit FEM",
+        summary: "explicit FEM (paper Algorithm I): symplectic Euler (or the printed forward Euler) on the elastic forces",
+        paper: true,
+        contact: true,
+        implicit: false,
+        iterations: false,
+        substeps: false,
+        factorisation: false,
+        deterministic_across_threads: true,
+        clock: Clock::Time,
+        converges_to: "the exact solution as dt -> 0 (first order), below the stability limit",
+    };
+
+    fn validate_params(p: &ExplicitParams, prefix: &str) -> Result<(), SolverError> {
+        p.validate_as(prefix)
+    }
+
+    fn build<E: Energy>(model: &Model<E>, p: &ExplicitParams) -> Result<Self, SolverError> {
+        ExplicitStepper::new(model, *p)
+    }
+
+    fn dt_mut(p: &mut ExplicitParams) -> Option<&mut Real> {
+        Some(&mut p.dt)
+    }
+
+    fn time_step_warning(&self) -> Option<String> {
+        self.check.warning()
     }
 }
 

@@ -18,25 +18,37 @@
 //!
 //! The starting guess is `x_hat` when its potential is finite, else the current positions (always
 //! valid), so a large step never starts from an inverted configuration.
+//!
+//! Registered as `implicit` ([`Solver`]); scene keys `dt`, `damping` and Newton's `tolerance`,
+//! `max_iterations`, `max_halvings`.
 
 use fem_core::energy::Energy;
 use fem_core::math::{Real, Vec2};
 
+use crate::commit::{Kinematic, StepEnd};
 use crate::error::{SolverError, check_non_negative, check_positive};
 use crate::model::Model;
 use crate::newton::{NewtonParams, NewtonReport, NewtonSolver, Potential};
+use crate::registry::{Capabilities, Clock, Solver};
 use crate::report::StepReport;
 use crate::state::State;
-use crate::{Stepper, check_finite, check_step_inputs};
+use crate::{Stepper, check_step_inputs};
 
-/// Parameters of [`ImplicitStepper`].
+/// Parameters of [`ImplicitStepper`] (scene keys `dt`, `damping`, `tolerance`,
+/// `max_iterations`, `max_halvings`).
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(default)
+)]
 pub struct ImplicitParams {
     /// Time step, s (finite, > 0). Default `1e-3`.
     pub dt: Real,
-    /// Velocity damping rate `c`, 1/s (`v <- v exp(-c dt)`). Default 0.
+    /// Velocity damping rate `c`, 1/s (`v <- v exp(-c dt)`; finite, >= 0). Default 0.
     pub damping: Real,
-    /// Newton settings.
+    /// Newton settings (serde: flattened into this table).
+    #[cfg_attr(feature = "serde", serde(flatten))]
     pub newton: NewtonParams,
 }
 
@@ -53,9 +65,14 @@ impl Default for ImplicitParams {
 impl ImplicitParams {
     /// Check every field; errors name `implicit.<field>`.
     pub fn validate(&self) -> Result<(), SolverError> {
-        check_positive("implicit.dt", self.dt)?;
-        check_non_negative("implicit.damping", self.damping)?;
-        self.newton.validate("implicit.newton")
+        self.validate_as(ImplicitStepper::NAME)
+    }
+
+    /// Check every field; errors name `<prefix>.<field>` (Newton's too: `<prefix>.tolerance`).
+    pub fn validate_as(&self, prefix: &str) -> Result<(), SolverError> {
+        check_positive(&format!("{prefix}.dt"), self.dt)?;
+        check_non_negative(&format!("{prefix}.damping"), self.damping)?;
+        self.newton.validate_as(prefix)
     }
 }
 
@@ -175,29 +192,30 @@ impl Stepper for ImplicitStepper {
         for ((v, xn), x) in self.v_new.iter_mut().zip(&self.x_new).zip(&state.x) {
             *v = (xn - x) / h * self.decay;
         }
-        // Kinematic velocities are their schedule's (undamped).
-        model
-            .kinematics()
-            .apply(t, h, &state.x, &mut self.x_new, &mut self.v_new);
-        check_finite(
-            state.step,
-            t,
-            &self.x_new,
-            &self.v_new,
-            report.inverted,
-            report.min_det_f,
-        )?;
-        if !report.converged {
-            return Err(SolverError::NotConverged {
-                step: state.step,
-                iterations: report.iterations,
-                residual: *report.residuals.last().unwrap_or(&Real::NAN),
-            });
+        // Kinematic velocities are their schedule's (undamped): the commit moves them.
+        let step = state.step;
+        StepEnd {
+            kinematics: Kinematic::Schedule { t, dt: h },
+            x: &mut self.x_new,
+            v: &mut self.v_new,
+            bodies: None,
+            known_finite: false,
+            inverted: report.inverted,
+            min_det_f: report.min_det_f,
+            t_end: t + h,
+            count_step: true,
         }
-        std::mem::swap(&mut state.x, &mut self.x_new);
-        std::mem::swap(&mut state.v, &mut self.v_new);
-        state.t += h;
-        state.step += 1;
+        .commit(model, state, || {
+            if report.converged {
+                Ok(())
+            } else {
+                Err(SolverError::NotConverged {
+                    step,
+                    iterations: report.iterations,
+                    residual: *report.residuals.last().unwrap_or(&Real::NAN),
+                })
+            }
+        })?;
         let out = StepReport {
             min_det_f: report.min_det_f,
             inverted: report.inverted,
@@ -207,5 +225,35 @@ impl Stepper for ImplicitStepper {
         };
         self.last = report;
         Ok(out)
+    }
+}
+
+impl Solver for ImplicitStepper {
+    type Params = ImplicitParams;
+    const NAME: &'static str = "implicit";
+    const CAPABILITIES: Capabilities = Capabilities {
+        title: "Implicit Euler",
+        summary: "implicit (backward) Euler: Newton on the incremental potential, sparse Cholesky",
+        paper: false,
+        contact: false,
+        implicit: true,
+        iterations: false,
+        substeps: false,
+        factorisation: true,
+        deterministic_across_threads: true,
+        clock: Clock::Time,
+        converges_to: "the exact solution as dt -> 0 (first order); each step to its Newton tolerance",
+    };
+
+    fn validate_params(p: &ImplicitParams, prefix: &str) -> Result<(), SolverError> {
+        p.validate_as(prefix)
+    }
+
+    fn build<E: Energy>(model: &Model<E>, p: &ImplicitParams) -> Result<Self, SolverError> {
+        ImplicitStepper::new(model, *p)
+    }
+
+    fn dt_mut(p: &mut ImplicitParams) -> Option<&mut Real> {
+        Some(&mut p.dt)
     }
 }

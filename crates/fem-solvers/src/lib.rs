@@ -4,38 +4,54 @@
 //! (Sections 3.1-3.2): explicit FEM (Algorithm I), energy-based PBD (Eqs. 4-6) and energy-based
 //! XPBD (Algorithm II, Eq. 7), with pinned and prescribed vertices, gravity, nodal loads and
 //! boundary tractions, a ground and rigid obstacles; and beyond the paper, implicit Euler
-//! ([`ImplicitStepper`]) and quasi-static equilibrium ([`StaticSolver`]), both by Newton with a
+//! ([`ImplicitStepper`]) and quasi-static equilibrium ([`StaticStepper`]), both by Newton with a
 //! sparse Cholesky factorisation (faer).
 //!
 //! The pieces, kept apart:
 //! - a [`Model`] (mesh, energy, lumped masses, boundary conditions, loads, obstacles): fixed
 //!   during a run;
-//! - a [`State`] (positions, velocities, rigid-body poses, time): what steps change;
-//! - steppers that advance a state by `dt` and return a [`StepReport`] (min det F, inverted
+//! - a [`State`] (positions, velocities, rigid-body poses, clock): what steps change;
+//! - steppers that advance a state by one step of their clock ([`Clock`]: a time step, or for
+//!   the static solver a load increment) and return a [`StepReport`] (min det F, inverted
 //!   elements, iterations, constraint or Newton residual, contacts): [`ExplicitStepper`],
-//!   [`PbdStepper`], [`XpbdStepper`], [`ImplicitStepper`], all behind the [`Stepper`] trait.
+//!   [`PbdStepper`], [`XpbdStepper`], [`ImplicitStepper`], [`StaticStepper`], all behind the
+//!   [`Stepper`] trait.
+//!
+//! **The solver registry** ([`registry`]): one list of the solvers, from which [`SolverKind`]
+//! (the names, [`SolverKind::ALL`], [`Capabilities`]), [`SolverParams`] (any solver's parameters,
+//! validated under the caller's field names, built into a stepper) and [`AnyStepper`] (the
+//! stepper chosen at run time, dispatching to the concrete one) are generated. Each solver
+//! implements [`Solver`] in its own file; adding one is that file, one line in the list, and
+//! the regenerated table of `docs/solvers.md` ([`capability_table`]).
 //!
 //! Also: the explicit stability guard ([`Model::check_time_step`]: smallest element height over
 //! the dilatational wave speed), blow-up detection (a step never writes non-finite values into
 //! the state; it returns [`SolverError::NonFinite`] naming the step and the first bad vertex),
 //! and energy diagnostics ([`diagnostics::energies`]).
 //!
+//! Optional feature `serde`: [`SolverKind`] (de)serialises as its name, the parameter structs
+//! under the scene's `[solver]` keys (`SolverParams::deserialize_as` reads one solver's keys
+//! from a flat table), and fem-core's energy and plane-model names likewise.
+//!
 //! Architecture invariants:
 //! - **fem-solvers never names a concrete energy.** Models and steppers are generic over
 //!   [`fem_core::energy::Energy`]; only tests, benches and examples pick one.
+//! - **A step never writes a non-finite value into the state**: every stepper ends its steps
+//!   through one commit that checks the new values before swapping them in.
 //! - **Every stepper gives bit-identical states for any number of rayon threads**: fixed work
-//!   chunks, element-order sums, no atomics, no hash maps (see [`kernel`](crate) docs in the
-//!   source and the `determinism` tests).
+//!   chunks, element-order sums, no atomics, no hash maps (see the `kernel` module docs in the
+//!   source; the stepper battery checks every registered solver).
 //! - **Hot loops do not allocate**: steppers own their workspace, sized on construction or on
 //!   the first step.
 //!
 //! Units are SI per unit thickness (plane strain or plane stress is decided where the energy's
 //! Lamé parameters are built). Conventions where the paper's printed text is ambiguous or
 //! departs from standard practice (symplectic Euler by default, damping `v <- v exp(-c dt)`, the
-//! consistent XPBD constraint `C = sqrt(2 a psi)`) are documented in each stepper's module.
+//! consistent XPBD constraint `C = sqrt(2 a psi)`) are documented in each stepper's module. On
+//! `wasm32-unknown-unknown`, which has no clock, Newton's reported time split reads zero.
 //!
-//! What this crate does not know: meshing, file formats, scenes and the command line (those
-//! live in `fem-mesh` and `fem-cases`), and which energy a run uses.
+//! What this crate does not know: meshing, file formats, scenes and the command line, and
+//! which energy a run uses.
 //!
 //! ```
 //! use fem_core::{energy::NeoHookean, material::Material, PlaneModel};
@@ -56,9 +72,30 @@
 //! let tip = state.displacement(&model, fem_solvers::testing::node_index(20, 0, 4));
 //! assert!((tip.y + 0.049).abs() < 0.003);
 //! ```
+//!
+//! The same run with the solver chosen by name, through the registry:
+//!
+//! ```
+//! use fem_core::{energy::NeoHookean, material::Material, PlaneModel};
+//! use fem_solvers::{testing::{beam_mesh, cantilever}, SolverKind, State, Stepper};
+//! let lame = Material::new(1000.0, 0.3, 1.0).unwrap().lame(PlaneModel::PlaneStrain);
+//! let model = cantilever(beam_mesh(20, 4).unwrap(), NeoHookean::new(lame)).unwrap();
+//! let kind: SolverKind = "xpbd".parse().unwrap();
+//! let mut params = kind.default_params();
+//! params.set_dt(1e-3);
+//! params.validate_as("solver").unwrap();
+//! let mut stepper = params.build(&model).unwrap();
+//! let mut state = State::at_rest(&model);
+//! for _ in 0..100 {
+//!     stepper.step(&model, &mut state).unwrap();
+//! }
+//! assert!((state.t - 0.1).abs() < 1e-12);
+//! assert!(kind.capabilities().contact);
+//! ```
 
 pub mod bc;
 pub mod colour;
+mod commit;
 pub mod contact;
 pub mod diagnostics;
 mod error;
@@ -68,13 +105,17 @@ mod kernel;
 pub mod model;
 pub mod newton;
 pub mod position_based;
+pub mod registry;
+#[cfg(all(test, feature = "serde"))]
+mod registry_extension;
 mod report;
 mod state;
 pub mod statics;
+mod stopwatch;
 pub mod testing;
 
 use fem_core::energy::Energy;
-use fem_core::math::{Real, Vec2};
+use fem_core::math::Real;
 
 pub use bc::{PrescribedMotion, Region};
 pub use contact::{BodyState, ContactParams, Ground, ObstacleMotion};
@@ -84,17 +125,23 @@ pub use implicit::{ImplicitParams, ImplicitStepper};
 pub use model::{Model, TimeStepCheck};
 pub use newton::{NewtonParams, NewtonReport};
 pub use position_based::{Ordering, PbdParams, PbdStepper, XpbdForm, XpbdParams, XpbdStepper};
+pub use registry::{
+    AnyStepper, Capabilities, Clock, ParamsSerde, Solver, SolverKind, SolverParams,
+    capability_table,
+};
 pub use report::StepReport;
 pub use state::State;
-pub use statics::{StaticParams, StaticReport, StaticSolver};
+pub use statics::{StaticParams, StaticReport, StaticSolver, StaticStepper};
 
-/// A time stepper: advances a [`State`] of a [`Model`] by its time step.
+/// A stepper: advances a [`State`] of a [`Model`] by one step of its clock ([`Clock`]): a
+/// time step, or for the static solver a load increment.
 pub trait Stepper {
-    /// The time step, s.
+    /// The time step, s; for a [`Clock::LoadFactor`] solver the nominal load increment
+    /// (dimensionless).
     fn dt(&self) -> Real;
 
-    /// Advance `state` by one step of [`Stepper::dt`]. On error the state is unchanged (a
-    /// failed substep leaves the earlier substeps applied).
+    /// Advance `state` by one step. On error the state is unchanged (a failed substep leaves
+    /// the earlier substeps applied), and never holds a non-finite value.
     fn step<E: Energy>(
         &mut self,
         model: &Model<E>,
@@ -116,37 +163,4 @@ pub(crate) fn check_step_inputs<E: Energy>(
         });
     }
     state.check_matches(model)
-}
-
-/// The first vertex whose position or velocity is not finite.
-pub(crate) fn first_non_finite(x: &[Vec2], v: &[Vec2]) -> Option<usize> {
-    x.iter().zip(v).position(|(p, q)| {
-        !(p.x.is_finite() && p.y.is_finite() && q.x.is_finite() && q.y.is_finite())
-    })
-}
-
-/// [`SolverError::NonFinite`] for the first bad vertex of a proposed new state, if any; the
-/// step number, time and inversion statistics go into the message.
-pub(crate) fn check_finite(
-    step: u64,
-    time: Real,
-    x: &[Vec2],
-    v: &[Vec2],
-    inverted: usize,
-    min_det_f: Real,
-) -> Result<(), SolverError> {
-    match first_non_finite(x, v) {
-        None => Ok(()),
-        Some(vertex) => Err(SolverError::NonFinite {
-            step,
-            time,
-            vertex,
-            x: x[vertex].x,
-            y: x[vertex].y,
-            vx: v[vertex].x,
-            vy: v[vertex].y,
-            inverted,
-            min_det_f,
-        }),
-    }
 }

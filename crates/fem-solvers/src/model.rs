@@ -14,7 +14,7 @@ use crate::contact::{ContactParams, Ground, Obstacle, ObstacleMotion};
 use crate::error::{SolverError, check_finite_vec, check_positive};
 use crate::kernel::{ElementBlock, PackedElement, pack, pack_blocks};
 
-/// Standard gravity used by [`Model::with_standard_gravity`], m/s^2 (the peers use 9.8).
+/// Standard gravity used by [`Model::with_standard_gravity`], m/s^2 (the paper's cases use 9.8).
 pub const STANDARD_GRAVITY: Real = 9.8;
 
 /// Mesh, energy, masses, boundary conditions, loads and obstacles of one simulation.

@@ -18,6 +18,10 @@
 //! The factorisation runs sequentially (`Par::Seq`) so that results are bit-identical for any
 //! number of rayon threads; assembly is parallel and deterministic (fem-core).
 //!
+//! Each solve reports the wall time it spent in assembly, factorisation, triangular solves and
+//! line search ([`NewtonReport`]). On `wasm32-unknown-unknown`, which has no clock, these times
+//! read zero (the solve itself is unchanged).
+//!
 //! Why faer rather than a hand-written solver: a supernodal sparse Cholesky with an AMD ordering
 //! is the heart of the cost here, and faer's is well tested and fast.
 
@@ -28,7 +32,6 @@ use faer::sparse::linalg::cholesky::{
     factorize_symbolic_cholesky,
 };
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
-use std::time::Instant;
 
 use faer::{Conj, MatMut, Par, Side};
 use fem_core::assembly::{
@@ -38,16 +41,26 @@ use fem_core::energy::Energy;
 use fem_core::math::{Real, Vec2};
 use fem_core::mesh::Mesh;
 
-use crate::error::SolverError;
+use crate::error::{SolverError, check_count};
+use crate::stopwatch::Stopwatch;
 
 /// Convergence and line-search settings of Newton's method.
+///
+/// With the `serde` feature the fields are read under their own names (`tolerance`,
+/// `max_iterations`, `max_halvings`); the implicit and static parameters flatten them into
+/// their own table.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(default)
+)]
 pub struct NewtonParams {
     /// Stop when the residual (the 2-norm of the free part of the gradient, N) falls below
     /// `tolerance` times the force scale (the larger of the first residual and the norm of the
-    /// external load, and 1e-12 N). Default `1e-8`.
+    /// external load, and 1e-12 N), dimensionless, in the open interval (0, 1). Default `1e-8`.
     pub tolerance: Real,
-    /// Most Newton iterations per solve. Default 50.
+    /// Most Newton iterations per solve (>= 1). Default 50.
     pub max_iterations: usize,
     /// Most step halvings of the line search. Default 40.
     pub max_halvings: usize,
@@ -64,22 +77,16 @@ impl Default for NewtonParams {
 }
 
 impl NewtonParams {
-    pub(crate) fn validate(&self, prefix: &str) -> Result<(), SolverError> {
-        if !(self.tolerance.is_finite() && self.tolerance > 0.0) {
+    /// Check every field; errors name `<prefix>.tolerance` and `<prefix>.max_iterations`.
+    pub fn validate_as(&self, prefix: &str) -> Result<(), SolverError> {
+        if !(self.tolerance > 0.0 && self.tolerance < 1.0) {
             return Err(SolverError::invalid(
                 format!("{prefix}.tolerance"),
                 self.tolerance,
-                "must be a finite number > 0",
+                "must lie in the open interval (0, 1) (relative to the force scale)",
             ));
         }
-        if self.max_iterations == 0 {
-            return Err(SolverError::invalid(
-                format!("{prefix}.max_iterations"),
-                0,
-                "must be >= 1",
-            ));
-        }
-        Ok(())
+        check_count(&format!("{prefix}.max_iterations"), self.max_iterations)
     }
 }
 
@@ -101,7 +108,8 @@ pub struct NewtonReport {
     pub min_det_f: Real,
     /// Inverted elements at the solution.
     pub inverted: usize,
-    /// Wall time of gradient and Hessian assembly (forces, stiffness, reduction), s.
+    /// Wall time of gradient and Hessian assembly (forces, stiffness, reduction), s. This and
+    /// the three times below read zero on `wasm32-unknown-unknown` (no clock there).
     pub assembly_seconds: Real,
     /// Wall time of the numeric Cholesky factorisations, s.
     pub factorisation_seconds: Real,
@@ -326,7 +334,7 @@ impl NewtonSolver {
         x: &[Vec2],
         report: &mut NewtonReport,
     ) -> Result<(), SolverError> {
-        let start = Instant::now();
+        let start = Stopwatch::start();
         populate_stiffness(
             p.mesh,
             p.energy,
@@ -357,8 +365,8 @@ impl NewtonSolver {
             .map(|&s| self.values[s].abs())
             .fold(0.0, Real::max)
             .max(Real::MIN_POSITIVE);
-        report.assembly_seconds += start.elapsed().as_secs_f64();
-        let start = Instant::now();
+        report.assembly_seconds += start.seconds();
+        let start = Stopwatch::start();
         let mut shift = 0.0;
         for attempt in 0..8 {
             if attempt > 0 {
@@ -396,7 +404,7 @@ impl NewtonSolver {
                 )
                 .is_ok();
             if ok {
-                report.factorisation_seconds += start.elapsed().as_secs_f64();
+                report.factorisation_seconds += start.seconds();
                 return Ok(());
             }
         }
@@ -457,10 +465,10 @@ impl NewtonSolver {
         let mut at_floor = false;
         while residual > target && !at_floor && report.iterations < params.max_iterations {
             self.factorise(p, x, &mut report)?;
-            let start = Instant::now();
+            let start = Stopwatch::start();
             self.solve();
-            report.solve_seconds += start.elapsed().as_secs_f64();
-            let start = Instant::now();
+            report.solve_seconds += start.seconds();
+            let start = Stopwatch::start();
             let step = self.direction.iter().fold(0.0, |m: Real, d| m.max(d.abs()));
             if step <= 1e-13 * size {
                 at_floor = true;
@@ -506,7 +514,7 @@ impl NewtonSolver {
                 }
                 alpha *= 0.5;
             }
-            report.line_search_seconds += start.elapsed().as_secs_f64();
+            report.line_search_seconds += start.seconds();
             report.iterations += 1;
             if !accepted {
                 // No decrease along the Newton direction within round-off: the iterate is as
@@ -514,9 +522,9 @@ impl NewtonSolver {
                 break;
             }
             x.copy_from_slice(&self.trial);
-            let start = Instant::now();
+            let start = Stopwatch::start();
             residual = self.gradient(p, x);
-            report.assembly_seconds += start.elapsed().as_secs_f64();
+            report.assembly_seconds += start.seconds();
             report.residuals.push(residual);
             report.potentials.push(phi);
         }

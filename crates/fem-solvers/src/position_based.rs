@@ -36,11 +36,16 @@
 //! computed in parallel over its triangles, then applied in parallel over vertex chunks through
 //! a per-colour vertex-sorted corner list; default); Jacobi (every constraint from the same positions, corrections summed per vertex).
 //! Jacobi scales each constraint's step (its `dlambda` and so its `dx` alike) by
-//! `relaxation / max_j n_j`, with `n_j` the number of triangles at vertex `j`: unlike
+//! `relaxation / max_j n_j` (`relaxation` = [`PbdParams::relaxation`], [`XpbdParams::relaxation`]), with `n_j` the number of triangles at vertex `j`: unlike
 //! per-vertex averaging of `dx` alone, this keeps positions and multipliers consistent, so
 //! Jacobi XPBD converges to the same solution as Gauss-Seidel (more slowly). Each gives bit-identical states for any thread count:
 //! within a colour no two constraints share a vertex, so parallel evaluation followed by
 //! application equals the in-place serial sweep, and Jacobi sums per vertex in element order.
+//!
+//! Registered as `pbd` and `xpbd` ([`Solver`]); scene keys: `dt`, `substeps`, `iterations`,
+//! `damping`, `ordering` (`"gauss-seidel"` | `"coloured"` | `"jacobi"`), `relaxation`,
+//! `rest_threshold`, and PBD's `stiffness` or XPBD's `compliance` and `xpbd_form`
+//! (`"consistent"` | `"literal"`).
 
 use fem_core::energy::Energy;
 use fem_core::math::{Real, Vec2};
@@ -48,18 +53,28 @@ use fem_core::mesh::VertexAdjacency;
 use rayon::prelude::*;
 
 use crate::colour::Colouring;
+use crate::commit::{Kinematic, StepEnd};
 use crate::contact::{BodyState, ObstacleMotion, project_contacts};
-use crate::error::{SolverError, check_non_negative, check_positive};
+use crate::error::{
+    SolverError, check_count, check_non_negative, check_positive, check_relaxation,
+};
 use crate::kernel::{
     ELEMENT_CHUNK, Inversion, PackedElement, VERTEX_CHUNK, deformation_gradient, energy_gradients,
 };
 use crate::model::Model;
+use crate::registry::{Capabilities, Clock, Solver};
 use crate::report::StepReport;
 use crate::state::State;
-use crate::{Stepper, check_finite, check_step_inputs};
+use crate::{Stepper, check_step_inputs};
 
-/// The order in which triangle constraints are projected.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+/// The order in which triangle constraints are projected. Serde names: `gauss-seidel`,
+/// `coloured`, `jacobi`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(rename_all = "kebab-case")
+)]
 pub enum Ordering {
     /// Gauss-Seidel in triangle index order (serial; the paper's loop).
     GaussSeidel,
@@ -67,31 +82,18 @@ pub enum Ordering {
     #[default]
     Coloured,
     /// Jacobi: all constraints from the same positions, each step scaled by
-    /// `relaxation / max_j n_j` (see the module docs), corrections summed per vertex.
-    Jacobi {
-        /// Relaxation factor, dimensionless, in `(0, 2)`. 1 is safe; larger converges faster
-        /// but can oscillate.
-        relaxation: Real,
-    },
+    /// `relaxation / max_j n_j` (see the module docs and the parameters' `relaxation`),
+    /// corrections summed per vertex.
+    Jacobi,
 }
 
-impl Ordering {
-    fn validate(&self, prefix: &str) -> Result<(), SolverError> {
-        if let Ordering::Jacobi { relaxation } = *self {
-            if !(relaxation > 0.0 && relaxation < 2.0) {
-                return Err(SolverError::invalid(
-                    format!("{prefix}.ordering.relaxation"),
-                    relaxation,
-                    "must lie in the open interval (0, 2)",
-                ));
-            }
-        }
-        Ok(())
-    }
-}
-
-/// Parameters of [`PbdStepper`].
+/// Parameters of [`PbdStepper`] (scene keys: the field names).
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(default)
+)]
 pub struct PbdParams {
     /// Time step, s (finite, > 0). Default `1e-3`.
     pub dt: Real,
@@ -106,6 +108,10 @@ pub struct PbdParams {
     pub damping: Real,
     /// Constraint ordering. Default coloured Gauss-Seidel.
     pub ordering: Ordering,
+    /// Jacobi relaxation factor, dimensionless, in the open interval `(0, 2)` (checked
+    /// whatever the ordering; used only by [`Ordering::Jacobi`]). 1 is safe; larger converges
+    /// faster but can oscillate. Default 1.
+    pub relaxation: Real,
     /// Skip a constraint when `psi <= rest_threshold * M` (see the module docs),
     /// dimensionless. Default `1e-14`.
     pub rest_threshold: Real,
@@ -120,13 +126,19 @@ impl Default for PbdParams {
             stiffness: 1.0,
             damping: 0.0,
             ordering: Ordering::default(),
+            relaxation: 1.0,
             rest_threshold: 1e-14,
         }
     }
 }
 
-/// Which constraint function XPBD uses.
+/// Which constraint function XPBD uses. Serde names: `consistent`, `literal`.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(rename_all = "kebab-case")
+)]
 pub enum XpbdForm {
     /// `C = sqrt(2 a psi)`: compliance 1 reproduces the elastic energy. Default.
     #[default]
@@ -135,8 +147,14 @@ pub enum XpbdForm {
     Literal,
 }
 
-/// Parameters of [`XpbdStepper`].
+/// Parameters of [`XpbdStepper`] (scene keys: the field names, with `form` read as
+/// `xpbd_form`).
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(default)
+)]
 pub struct XpbdParams {
     /// Time step, s (finite, > 0). Default `1e-3`.
     pub dt: Real,
@@ -148,12 +166,17 @@ pub struct XpbdParams {
     /// dimensionless, 1 = the material's own stiffness, 2 = twice as soft. Literal form: 1/J per
     /// unit thickness. Default 1.
     pub compliance: Real,
-    /// Constraint function. Default consistent.
+    /// Constraint function (scene key `xpbd_form`). Default consistent.
+    #[cfg_attr(feature = "serde", serde(rename = "xpbd_form"))]
     pub form: XpbdForm,
     /// Velocity damping rate `c`, 1/s (`v <- v exp(-c h)` per substep). Default 0.
     pub damping: Real,
     /// Constraint ordering. Default coloured Gauss-Seidel.
     pub ordering: Ordering,
+    /// Jacobi relaxation factor, dimensionless, in the open interval `(0, 2)` (checked
+    /// whatever the ordering; used only by [`Ordering::Jacobi`]). 1 is safe; larger converges
+    /// faster but can oscillate. Default 1.
+    pub relaxation: Real,
     /// Skip a constraint when `psi <= rest_threshold * M` (see the module docs),
     /// dimensionless. Default `1e-14`.
     pub rest_threshold: Real,
@@ -169,48 +192,53 @@ impl Default for XpbdParams {
             form: XpbdForm::Consistent,
             damping: 0.0,
             ordering: Ordering::default(),
+            relaxation: 1.0,
             rest_threshold: 1e-14,
         }
     }
 }
 
-fn check_count(field: &str, n: usize) -> Result<(), SolverError> {
-    if n >= 1 {
-        Ok(())
-    } else {
-        Err(SolverError::invalid(field, n, "must be at least 1"))
-    }
-}
-
 impl PbdParams {
-    /// Check every field.
+    /// Check every field; errors name `pbd.<field>`.
     pub fn validate(&self) -> Result<(), SolverError> {
-        check_positive("pbd.dt", self.dt)?;
-        check_count("pbd.substeps", self.substeps)?;
-        check_count("pbd.iterations", self.iterations)?;
+        self.validate_as(PbdStepper::NAME)
+    }
+
+    /// Check every field; errors name `<prefix>.<field>`.
+    pub fn validate_as(&self, prefix: &str) -> Result<(), SolverError> {
+        let field = |name: &str| format!("{prefix}.{name}");
+        check_positive(&field("dt"), self.dt)?;
+        check_count(&field("substeps"), self.substeps)?;
+        check_count(&field("iterations"), self.iterations)?;
         if !(self.stiffness > 0.0 && self.stiffness <= 1.0) {
             return Err(SolverError::invalid(
-                "pbd.stiffness",
+                field("stiffness"),
                 self.stiffness,
                 "must lie in (0, 1]",
             ));
         }
-        check_non_negative("pbd.damping", self.damping)?;
-        check_non_negative("pbd.rest_threshold", self.rest_threshold)?;
-        self.ordering.validate("pbd")
+        check_non_negative(&field("damping"), self.damping)?;
+        check_relaxation(&field("relaxation"), self.relaxation)?;
+        check_non_negative(&field("rest_threshold"), self.rest_threshold)
     }
 }
 
 impl XpbdParams {
-    /// Check every field.
+    /// Check every field; errors name `xpbd.<field>`.
     pub fn validate(&self) -> Result<(), SolverError> {
-        check_positive("xpbd.dt", self.dt)?;
-        check_count("xpbd.substeps", self.substeps)?;
-        check_count("xpbd.iterations", self.iterations)?;
-        check_non_negative("xpbd.compliance", self.compliance)?;
-        check_non_negative("xpbd.damping", self.damping)?;
-        check_non_negative("xpbd.rest_threshold", self.rest_threshold)?;
-        self.ordering.validate("xpbd")
+        self.validate_as(XpbdStepper::NAME)
+    }
+
+    /// Check every field; errors name `<prefix>.<field>`.
+    pub fn validate_as(&self, prefix: &str) -> Result<(), SolverError> {
+        let field = |name: &str| format!("{prefix}.{name}");
+        check_positive(&field("dt"), self.dt)?;
+        check_count(&field("substeps"), self.substeps)?;
+        check_count(&field("iterations"), self.iterations)?;
+        check_non_negative(&field("compliance"), self.compliance)?;
+        check_non_negative(&field("damping"), self.damping)?;
+        check_relaxation(&field("relaxation"), self.relaxation)?;
+        check_non_negative(&field("rest_threshold"), self.rest_threshold)
     }
 }
 
@@ -437,6 +465,7 @@ impl Engine {
         damping: Real,
         rest_threshold: Real,
         ordering: Ordering,
+        relaxation: Real,
         rule: Rule,
     ) -> Self {
         let mesh = model.mesh();
@@ -454,7 +483,7 @@ impl Engine {
             _ => (model.elements.clone(), vec![(0, model.elements.len())], 1),
         };
         let jacobi_scale = match ordering {
-            Ordering::Jacobi { relaxation } => model
+            Ordering::Jacobi => model
                 .elements
                 .iter()
                 .map(|el| {
@@ -597,46 +626,35 @@ impl Engine {
 
         // Velocities (lines 12-13).
         let decay = (-self.damping * h).exp();
-        let mut all_finite = true;
+        let mut known_finite = true;
         for ((vn, xp), x) in self.v_new.iter_mut().zip(&self.x_pred).zip(&state.x) {
             let v = (xp - x) * (decay / h);
-            all_finite &= (v.x + v.y + xp.x + xp.y).is_finite();
+            known_finite &= (v.x + v.y + xp.x + xp.y).is_finite();
             *vn = v;
         }
-        model
-            .kinematics()
-            .apply(t, h, &state.x, &mut self.x_pred, &mut self.v_new);
-        if !all_finite {
-            check_finite(
-                state.step,
-                t,
-                &self.x_pred,
-                &self.v_new,
-                stats.inv.inverted,
-                stats.inv.min_det_f,
-            )?;
-        }
-        for (o, (obs, (pred, body))) in model
+        for (obs, (pred, body)) in model
             .obstacles()
             .iter()
             .zip(self.bodies_pred.iter_mut().zip(&state.bodies))
-            .enumerate()
         {
             if let ObstacleMotion::Dynamic { .. } = obs.motion() {
                 pred.velocity = (pred.position - body.position) / h;
                 pred.angular_velocity = (pred.angle - body.angle) / h;
             }
-            if !pred.is_finite() {
-                return Err(SolverError::NonFiniteBody {
-                    step: state.step,
-                    body: o,
-                });
-            }
         }
-        std::mem::swap(&mut state.x, &mut self.x_pred);
-        std::mem::swap(&mut state.v, &mut self.v_new);
-        std::mem::swap(&mut state.bodies, &mut self.bodies_pred);
-        state.t += h;
+        // A substep advances the time; the step counter moves once per step (in `step`).
+        StepEnd {
+            kinematics: Kinematic::Schedule { t, dt: h },
+            x: &mut self.x_pred,
+            v: &mut self.v_new,
+            bodies: Some(&mut self.bodies_pred),
+            known_finite,
+            inverted: stats.inv.inverted,
+            min_det_f: stats.inv.min_det_f,
+            t_end: t + h,
+            count_step: false,
+        }
+        .commit(model, state, || Ok(()))?;
         Ok(StepReport {
             min_det_f: stats.inv.min_det_f,
             inverted: stats.inv.inverted,
@@ -713,7 +731,7 @@ impl Engine {
                     }
                 }
             }
-            Ordering::Jacobi { .. } => {
+            Ordering::Jacobi => {
                 let els = &self.elements[..];
                 let nc = els.len().div_ceil(ELEMENT_CHUNK);
                 self.chunk_stats.clear();
@@ -878,6 +896,7 @@ impl PbdStepper {
                 params.damping,
                 params.rest_threshold,
                 params.ordering,
+                params.relaxation,
                 Rule::Pbd {
                     stiffness: params.stiffness,
                 },
@@ -908,9 +927,71 @@ impl XpbdStepper {
                 params.damping,
                 params.rest_threshold,
                 params.ordering,
+                params.relaxation,
                 rule,
             ),
             params,
         })
+    }
+}
+
+/// What the position-based frameworks share in the capability table.
+const POSITION_BASED: Capabilities = Capabilities {
+    title: "",
+    summary: "",
+    paper: true,
+    contact: true,
+    implicit: false,
+    iterations: true,
+    substeps: true,
+    factorisation: false,
+    deterministic_across_threads: true,
+    clock: Clock::Time,
+    converges_to: "",
+};
+
+impl Solver for PbdStepper {
+    type Params = PbdParams;
+    const NAME: &'static str = "pbd";
+    const CAPABILITIES: Capabilities = Capabilities {
+        title: "PBD",
+        summary: "energy-based PBD (Bender et al. 2014; paper Eqs. 4-6): one C = a psi constraint per triangle, Gauss-Seidel projection",
+        converges_to: "no material limit: stiffness depends on dt and iterations",
+        ..POSITION_BASED
+    };
+
+    fn validate_params(p: &PbdParams, prefix: &str) -> Result<(), SolverError> {
+        p.validate_as(prefix)
+    }
+
+    fn build<E: Energy>(model: &Model<E>, p: &PbdParams) -> Result<Self, SolverError> {
+        PbdStepper::new(model, *p)
+    }
+
+    fn dt_mut(p: &mut PbdParams) -> Option<&mut Real> {
+        Some(&mut p.dt)
+    }
+}
+
+impl Solver for XpbdStepper {
+    type Params = XpbdParams;
+    const NAME: &'static str = "xpbd";
+    const CAPABILITIES: Capabilities = Capabilities {
+        title: "XPBD",
+        summary: "energy-based XPBD (paper Algorithm II, Eq. 7): compliant C = sqrt(2 a psi) per triangle (the printed C = a psi selectable)",
+        converges_to: "implicit Euler of the true energy only to about 0.5-0.7 % (drops the primal residual)",
+        ..POSITION_BASED
+    };
+
+    fn validate_params(p: &XpbdParams, prefix: &str) -> Result<(), SolverError> {
+        p.validate_as(prefix)
+    }
+
+    fn build<E: Energy>(model: &Model<E>, p: &XpbdParams) -> Result<Self, SolverError> {
+        XpbdStepper::new(model, *p)
+    }
+
+    fn dt_mut(p: &mut XpbdParams) -> Option<&mut Real> {
+        Some(&mut p.dt)
     }
 }

@@ -1,4 +1,4 @@
-//! The state a stepper advances: vertex positions and velocities, rigid-body poses, time.
+//! The state a stepper advances: vertex positions and velocities, rigid-body poses, clock.
 
 use fem_core::energy::Energy;
 use fem_core::math::{Real, Vec2};
@@ -16,9 +16,10 @@ pub struct State {
     pub v: Vec<Vec2>,
     /// One pose per obstacle of the model (static and kinematic ones too), in obstacle order.
     pub bodies: Vec<BodyState>,
-    /// Time, s.
+    /// The clock ([`Clock`](crate::Clock)): time, s; for the static solver the load factor
+    /// (0 at rest, 1 under the full load).
     pub t: Real,
-    /// Number of steps taken.
+    /// Number of steps taken (static solver: converged load increments).
     pub step: u64,
 }
 

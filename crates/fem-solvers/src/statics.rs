@@ -1,29 +1,62 @@
-//! Quasi-static equilibrium (no inertia): the positions that minimise
-//! `Psi(x) - f_ext . x` with the kinematic vertices held where the state has them.
+//! Quasi-static equilibrium (no inertia) as a stepper over the load factor: the positions that
+//! minimise `Psi(x) - lambda f_ext . x` for a load factor `lambda` going from 0 to 1, with the
+//! kinematic vertices moved in proportion to `lambda`.
 //!
-//! Large loads are applied in load steps: the load factor goes from 0 to 1 in
-//! [`StaticParams::load_steps`] equal increments, each solved by Newton from the previous
-//! equilibrium ([`crate::newton`]); an increment whose Newton solve fails is halved, up to
-//! [`StaticParams::max_bisections`] times. Contact is not handled (a model with contact
-//! geometry is rejected).
+//! [`StaticStepper`] runs on [`Clock::LoadFactor`]: [`State::t`] is the load factor (0 at rest,
+//! exactly 1 at the end) and [`State::step`] counts converged increments. Each
+//! [`Stepper::step`] solves one increment from `t` to `min(t + inc, 1)` by Newton from the
+//! previous equilibrium ([`crate::newton`]); `inc` starts at `1 / load_steps`
+//! ([`StaticParams::load_steps`]), and the increment that would end within `1e-12` of 1 ends at
+//! exactly 1. An increment whose Newton solve fails (an error, no convergence, or a non-finite
+//! `det F`) is halved and retried within the same call; the halved increment is kept for the
+//! following steps. Halvings are counted over the run (from `t = 0`): after
+//! [`StaticParams::max_bisections`] of them the step returns [`SolverError::LoadIncrement`]
+//! with the state left at the last equilibrium. Velocities are zero after every step.
+//!
+//! Boundary conditions: pinned vertices stay where the state has them. A prescribed vertex
+//! moves from its position at `t = 0` by its schedule's whole displacement
+//! `velocity * (end - start)` ([`PrescribedMotion`](crate::PrescribedMotion)) times the load
+//! factor, so its window must be finite (an infinite `end` on a moving vertex is rejected at
+//! construction, naming the field). Contact is not handled: a model with a ground or obstacles
+//! is rejected.
+//!
+//! A step on a state whose load factor is already 1 (or more) does nothing and returns `Ok`
+//! with 0 iterations (and the state's inversion statistics), so a loop of a fixed number of
+//! steps may run past the end.
+//!
+//! [`StaticSolver`] is a convenience that steps until the load factor reaches 1.
+//!
+//! Registered as `static` ([`Solver`]); scene keys `load_steps`, `max_bisections` and Newton's
+//! `tolerance`, `max_iterations`, `max_halvings`.
 
 use fem_core::energy::Energy;
 use fem_core::math::{Real, Vec2};
 
-use crate::error::SolverError;
+use crate::commit::{Kinematic, StepEnd};
+use crate::error::{SolverError, check_count};
 use crate::implicit::external_load;
 use crate::model::Model;
 use crate::newton::{NewtonParams, NewtonReport, NewtonSolver, Potential};
+use crate::registry::{Capabilities, Clock, Solver};
+use crate::report::StepReport;
 use crate::state::State;
+use crate::{Stepper, check_step_inputs};
 
-/// Parameters of [`StaticSolver`].
+/// Parameters of [`StaticStepper`] (scene keys `load_steps`, `max_bisections`, `tolerance`,
+/// `max_iterations`, `max_halvings`).
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(default)
+)]
 pub struct StaticParams {
     /// Equal load increments from 0 to the full load (>= 1). Default 1.
     pub load_steps: usize,
-    /// Most halvings of an increment whose Newton solve fails. Default 10.
+    /// Most halvings of failed increments over a run. Default 10.
     pub max_bisections: usize,
-    /// Newton settings.
+    /// Newton settings (serde: flattened into this table).
+    #[cfg_attr(feature = "serde", serde(flatten))]
     pub newton: NewtonParams,
 }
 
@@ -37,52 +70,47 @@ impl Default for StaticParams {
     }
 }
 
-/// What a static solve did.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct StaticReport {
-    /// The load factors of the converged increments, ending at 1.
-    pub load_factors: Vec<Real>,
-    /// The Newton report of each converged increment.
-    pub increments: Vec<NewtonReport>,
-    /// Increments that failed and were halved.
-    pub bisections: usize,
-    /// Newton iterations of the failed attempts.
-    pub failed_iterations: usize,
-}
-
-impl StaticReport {
-    /// Newton iterations over the converged increments.
-    pub fn iterations(&self) -> usize {
-        self.increments.iter().map(|r| r.iterations).sum()
+impl StaticParams {
+    /// Check every field; errors name `static.<field>`.
+    pub fn validate(&self) -> Result<(), SolverError> {
+        self.validate_as(StaticStepper::NAME)
     }
 
-    /// The final residual, N.
-    pub fn residual(&self) -> Real {
-        self.increments
-            .last()
-            .and_then(|r| r.residuals.last().copied())
-            .unwrap_or(Real::NAN)
+    /// Check every field; errors name `<prefix>.<field>` (Newton's too: `<prefix>.tolerance`).
+    pub fn validate_as(&self, prefix: &str) -> Result<(), SolverError> {
+        check_count(&format!("{prefix}.load_steps"), self.load_steps)?;
+        self.newton.validate_as(prefix)
     }
 }
 
-/// Quasi-static solver.
+/// The quasi-static solver as a stepper over the load factor (see the module docs).
 #[derive(Debug)]
-pub struct StaticSolver {
+pub struct StaticStepper {
     params: StaticParams,
+    n_triangles: usize,
     solver: NewtonSolver,
+    /// Kinematic vertices, increasing.
+    kinematic: Vec<usize>,
+    /// Whole displacement of each kinematic vertex at load factor 1, m (zero when pinned).
+    displacement: Vec<Vec2>,
+    /// Position of each kinematic vertex at load factor 0, m.
+    origin: Vec<Vec2>,
     load: Vec<Vec2>,
     scaled: Vec<Vec2>,
-    backup: Vec<Vec2>,
-    report: StaticReport,
+    x_new: Vec<Vec2>,
+    v_new: Vec<Vec2>,
+    /// The current load increment.
+    increment: Real,
+    /// Halvings so far in this run.
+    halvings: usize,
+    last: NewtonReport,
 }
 
-impl StaticSolver {
-    /// A solver for `model` (symbolic analysis done here).
+impl StaticStepper {
+    /// A stepper for `model`: validates the parameters, rejects contact geometry and prescribed
+    /// motions without an end, and does the symbolic analysis of the Hessian's pattern.
     pub fn new<E: Energy>(model: &Model<E>, params: StaticParams) -> Result<Self, SolverError> {
-        params.newton.validate("static.newton")?;
-        if params.load_steps == 0 {
-            return Err(SolverError::invalid("static.load_steps", 0, "must be >= 1"));
-        }
+        params.validate()?;
         if model.has_contact() {
             return Err(SolverError::invalid(
                 "static.contact",
@@ -90,77 +118,150 @@ impl StaticSolver {
                 "contact is handled by the explicit, PBD and XPBD steppers only",
             ));
         }
-        let kinematic: Vec<usize> = model.kinematics().vertices().collect();
+        let kin = model.kinematics();
+        let kinematic: Vec<usize> = kin.vertices().collect();
+        let mut displacement = Vec::with_capacity(kinematic.len());
+        for k in 0..kinematic.len() {
+            let u = match kin.motion[k] {
+                None => Vec2::zeros(),
+                Some(m) => {
+                    let motion = &kin.motions[m as usize];
+                    if motion.velocity == Vec2::zeros() {
+                        Vec2::zeros()
+                    } else if motion.end.is_finite() {
+                        motion.velocity * (motion.end - motion.start)
+                    } else {
+                        return Err(SolverError::invalid(
+                            format!("prescribed_motion[{m}].end"),
+                            motion.end,
+                            "must be finite for the static solver (the load factor scales the whole displacement velocity * (end - start))",
+                        ));
+                    }
+                }
+            };
+            displacement.push(u);
+        }
+        let solver = NewtonSolver::new(model.mesh(), &kinematic, "static")?;
         let n = model.mesh().n_vertices();
-        Ok(StaticSolver {
+        Ok(StaticStepper {
+            increment: 1.0 / params.load_steps as Real,
             params,
-            solver: NewtonSolver::new(model.mesh(), &kinematic, "static")?,
+            n_triangles: model.mesh().n_triangles(),
+            solver,
+            origin: vec![Vec2::zeros(); kinematic.len()],
+            kinematic,
+            displacement,
             load: vec![Vec2::zeros(); n],
             scaled: vec![Vec2::zeros(); n],
-            backup: vec![Vec2::zeros(); n],
-            report: StaticReport::default(),
+            x_new: vec![Vec2::zeros(); n],
+            v_new: vec![Vec2::zeros(); n],
+            halvings: 0,
+            last: NewtonReport::default(),
         })
     }
 
-    /// Move the free vertices of `state` to equilibrium under the model's full load (gravity
-    /// and nodal forces); velocities are set to zero. On error the state is unchanged.
-    pub fn solve<E: Energy>(
-        &mut self,
-        model: &Model<E>,
-        state: &mut State,
-    ) -> Result<StaticReport, SolverError> {
-        state.check_matches(model)?;
-        self.backup.copy_from_slice(&state.x);
-        match self.solve_with(model, state, &[], |_, _, _| {}) {
-            Ok(report) => Ok(report),
-            Err(e) => {
-                state.x.copy_from_slice(&self.backup);
-                Err(e)
+    /// The parameters.
+    pub fn params(&self) -> &StaticParams {
+        &self.params
+    }
+
+    /// The Newton report of the last converged increment.
+    pub fn last_newton(&self) -> &NewtonReport {
+        &self.last
+    }
+
+    /// Increments halved so far in this run.
+    pub fn halvings(&self) -> usize {
+        self.halvings
+    }
+
+    /// The load increment the next step will try (the nominal `1 / load_steps` until a
+    /// failed increment halves it).
+    pub fn increment(&self) -> Real {
+        self.increment
+    }
+
+    /// Free degrees of freedom of the linear systems.
+    pub fn unknowns(&self) -> usize {
+        self.solver.n_free()
+    }
+
+    /// Where the kinematic vertices were at load factor 0: taken from the state at `t = 0`
+    /// (a new run also resets the increment and the halvings), and recovered from its
+    /// positions when the state is not one this stepper produced.
+    fn sync_origin(&mut self, state: &State) {
+        let t = state.t;
+        if t == 0.0 {
+            self.increment = 1.0 / self.params.load_steps as Real;
+            self.halvings = 0;
+        }
+        for ((o, &v), u) in self
+            .origin
+            .iter_mut()
+            .zip(&self.kinematic)
+            .zip(&self.displacement)
+        {
+            if t == 0.0 {
+                *o = state.x[v];
+            } else if *o + t * u != state.x[v] {
+                *o = state.x[v] - t * u;
             }
         }
     }
+}
 
-    /// [`StaticSolver::solve`], also moving kinematic vertices: vertex `v` of `displacements`
-    /// goes from its starting position to that plus the displacement in proportion to the load
-    /// factor (a prescribed stretch applied with the load). `on_increment(factor, state,
-    /// report)` is called after every converged increment, the state at that equilibrium. On
-    /// error the state holds the last converged increment; [`StaticSolver::last_report`] tells
-    /// what was done, failed attempts included.
-    pub fn solve_with<E: Energy>(
+impl Stepper for StaticStepper {
+    /// The nominal load increment `1 / load_steps` (dimensionless).
+    fn dt(&self) -> Real {
+        1.0 / self.params.load_steps as Real
+    }
+
+    fn step<E: Energy>(
         &mut self,
         model: &Model<E>,
         state: &mut State,
-        displacements: &[(usize, Vec2)],
-        mut on_increment: impl FnMut(Real, &State, &NewtonReport),
-    ) -> Result<StaticReport, SolverError> {
-        state.check_matches(model)?;
-        if let Some(&(v, _)) = displacements.iter().find(|(v, _)| *v >= state.x.len()) {
-            return Err(SolverError::VertexOutOfRange {
-                field: "static.displacements".into(),
-                index: v,
-                n_vertices: state.x.len(),
+    ) -> Result<StepReport, SolverError> {
+        check_step_inputs(model, self.n_triangles, state)?;
+        if state.t >= 1.0 {
+            let (mut min_det_f, mut inverted) = (Real::INFINITY, 0);
+            let mesh = model.mesh();
+            for (t, el) in mesh.elements().iter().enumerate() {
+                let j = el
+                    .deformation_gradient(mesh.gather(t, &state.x))
+                    .determinant();
+                min_det_f = min_det_f.min(j);
+                inverted += usize::from(j <= 0.0);
+            }
+            return Ok(StepReport {
+                min_det_f,
+                inverted,
+                iterations: 0,
+                residual: 0.0,
+                contacts: 0,
             });
         }
+        self.sync_origin(state);
         external_load(model, &mut self.load);
-        let start: Vec<Vec2> = displacements.iter().map(|&(v, _)| state.x[v]).collect();
-        let place = |x: &mut [Vec2], factor: Real| {
-            for (&(v, u), x0) in displacements.iter().zip(&start) {
-                x[v] = x0 + factor * u;
-            }
-        };
-        self.report = StaticReport::default();
-        let mut x = state.x.clone();
-        let mut factor = 0.0;
-        let mut increment = 1.0 / self.params.load_steps as Real;
-        while factor < 1.0 {
+        let from = state.t;
+        let mut failed_iterations = 0;
+        loop {
             // The last increment lands on 1 exactly, whatever the rounding of the sum.
-            let next = if factor + increment > 1.0 - 1e-12 {
+            let next = if from + self.increment > 1.0 - 1e-12 {
                 1.0
             } else {
-                factor + increment
+                from + self.increment
             };
             for (s, l) in self.scaled.iter_mut().zip(&self.load) {
                 *s = next * l;
+            }
+            self.x_new.copy_from_slice(&state.x);
+            for ((&v, o), u) in self
+                .kinematic
+                .iter()
+                .zip(&self.origin)
+                .zip(&self.displacement)
+            {
+                self.x_new[v] = o + next * u;
             }
             let potential = Potential {
                 mesh: model.mesh(),
@@ -170,51 +271,149 @@ impl StaticSolver {
                 target: &[],
                 load: &self.scaled,
             };
-            place(&mut x, next);
-            let outcome = self
-                .solver
-                .minimise(&potential, &mut x, &self.params.newton, None);
-            match outcome {
+            let outcome =
+                self.solver
+                    .minimise(&potential, &mut self.x_new, &self.params.newton, None);
+            let reason = match outcome {
                 Ok(r) if r.converged && r.min_det_f.is_finite() => {
-                    factor = next;
-                    state.x.copy_from_slice(&x);
-                    state.v.iter_mut().for_each(|v| *v = Vec2::zeros());
-                    on_increment(factor, state, &r);
-                    self.report.load_factors.push(factor);
-                    self.report.increments.push(r);
-                }
-                other => {
-                    x.copy_from_slice(&state.x);
-                    let reason = match other {
-                        Err(e) => e.to_string(),
-                        Ok(r) => {
-                            self.report.failed_iterations += r.iterations;
-                            format!(
-                                "Newton did not converge in {} iterations (residual {:.4e} N)",
-                                r.iterations,
-                                r.residuals.last().copied().unwrap_or(Real::NAN)
-                            )
-                        }
-                    };
-                    if self.report.bisections >= self.params.max_bisections {
-                        return Err(SolverError::LoadIncrement {
-                            increment: self.report.load_factors.len() + 1,
-                            from: factor,
-                            to: next,
-                            halvings: self.report.bisections,
-                            reason,
-                        });
+                    self.v_new.fill(Vec2::zeros());
+                    StepEnd {
+                        kinematics: Kinematic::Placed,
+                        x: &mut self.x_new,
+                        v: &mut self.v_new,
+                        bodies: None,
+                        known_finite: false,
+                        inverted: r.inverted,
+                        min_det_f: r.min_det_f,
+                        t_end: next,
+                        count_step: true,
                     }
-                    self.report.bisections += 1;
-                    increment *= 0.5;
+                    .commit(model, state, || Ok(()))?;
+                    let out = StepReport {
+                        min_det_f: r.min_det_f,
+                        inverted: r.inverted,
+                        iterations: r.iterations + failed_iterations,
+                        residual: r.residuals.last().copied().unwrap_or(Real::NAN),
+                        contacts: 0,
+                    };
+                    self.last = r;
+                    return Ok(out);
                 }
+                Err(e) => e.to_string(),
+                Ok(r) => {
+                    failed_iterations += r.iterations;
+                    if r.converged {
+                        format!("the solution is not finite (min det F = {:e})", r.min_det_f)
+                    } else {
+                        format!(
+                            "Newton did not converge in {} iterations (residual {:.4e} N)",
+                            r.iterations,
+                            r.residuals.last().copied().unwrap_or(Real::NAN)
+                        )
+                    }
+                }
+            };
+            if self.halvings >= self.params.max_bisections {
+                return Err(SolverError::LoadIncrement {
+                    increment: state.step as usize + 1,
+                    from,
+                    to: next,
+                    halvings: self.halvings,
+                    reason,
+                });
             }
+            self.halvings += 1;
+            self.increment *= 0.5;
         }
-        Ok(self.report.clone())
+    }
+}
+
+impl Solver for StaticStepper {
+    type Params = StaticParams;
+    const NAME: &'static str = "static";
+    const CAPABILITIES: Capabilities = Capabilities {
+        title: "Static",
+        summary: "quasi-static equilibrium (no inertia): Newton per load increment, halved on failure, sparse Cholesky",
+        paper: false,
+        contact: false,
+        implicit: true,
+        iterations: false,
+        substeps: false,
+        factorisation: true,
+        deterministic_across_threads: true,
+        clock: Clock::LoadFactor,
+        converges_to: "the equilibrium under the full load, to the Newton tolerance",
+    };
+
+    fn validate_params(p: &StaticParams, prefix: &str) -> Result<(), SolverError> {
+        p.validate_as(prefix)
     }
 
-    /// What the last solve did (also after an error).
-    pub fn last_report(&self) -> &StaticReport {
-        &self.report
+    fn build<E: Energy>(model: &Model<E>, p: &StaticParams) -> Result<Self, SolverError> {
+        StaticStepper::new(model, *p)
+    }
+
+    fn dt_mut(_: &mut StaticParams) -> Option<&mut Real> {
+        None
+    }
+}
+
+/// What [`StaticSolver::solve`] did: one entry per converged increment.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct StaticReport {
+    /// The load factor after each converged increment, ending at 1.
+    pub load_factors: Vec<Real>,
+    /// The step report of each converged increment (iterations include failed attempts).
+    pub steps: Vec<StepReport>,
+    /// Increments halved over the run.
+    pub halvings: usize,
+}
+
+impl StaticReport {
+    /// Newton iterations over the run, failed attempts included.
+    pub fn iterations(&self) -> usize {
+        self.steps.iter().map(|r| r.iterations).sum()
+    }
+
+    /// The final residual, N (NaN when nothing was solved).
+    pub fn residual(&self) -> Real {
+        self.steps.last().map_or(Real::NAN, |r| r.residual)
+    }
+}
+
+/// A convenience over [`StaticStepper`]: step until the load factor reaches 1.
+#[derive(Debug)]
+pub struct StaticSolver {
+    stepper: StaticStepper,
+}
+
+impl StaticSolver {
+    /// A solver for `model` (see [`StaticStepper::new`]).
+    pub fn new<E: Energy>(model: &Model<E>, params: StaticParams) -> Result<Self, SolverError> {
+        Ok(StaticSolver {
+            stepper: StaticStepper::new(model, params)?,
+        })
+    }
+
+    /// Step `state` from its load factor to 1 (the full load). On error the state is at the
+    /// last equilibrium reached.
+    pub fn solve<E: Energy>(
+        &mut self,
+        model: &Model<E>,
+        state: &mut State,
+    ) -> Result<StaticReport, SolverError> {
+        let mut report = StaticReport::default();
+        while state.t < 1.0 {
+            let r = self.stepper.step(model, state)?;
+            report.load_factors.push(state.t);
+            report.steps.push(r);
+        }
+        report.halvings = self.stepper.halvings();
+        Ok(report)
+    }
+
+    /// The stepper.
+    pub fn stepper(&self) -> &StaticStepper {
+        &self.stepper
     }
 }

@@ -57,11 +57,7 @@ fn free_fall_is_exact_for_pbd_and_xpbd_in_every_ordering() {
     // y_n = -g h^2 n (n + 1) / 2 to round-off (1e-9 m over 0.5 s), with substeps too.
     let e = NeoHookean::new(case_a_lame());
     let model = free_beam(e, 10, 2).with_standard_gravity();
-    let orderings = [
-        Ordering::GaussSeidel,
-        Ordering::Coloured,
-        Ordering::Jacobi { relaxation: 1.0 },
-    ];
+    let orderings = [Ordering::GaussSeidel, Ordering::Coloured, Ordering::Jacobi];
     for ordering in orderings {
         for substeps in [1, 2] {
             let p = PbdStepper::new(
@@ -234,7 +230,7 @@ fn jacobi_xpbd_converges_towards_gauss_seidel() {
             &model(),
             XpbdParams {
                 iterations: 40,
-                ordering: Ordering::Jacobi { relaxation: 1.0 },
+                ordering: Ordering::Jacobi,
                 ..Default::default()
             },
         )
@@ -271,14 +267,15 @@ fn bad_position_based_parameters_name_field_and_value() {
     let e = XpbdStepper::new(
         &m,
         XpbdParams {
-            ordering: Ordering::Jacobi { relaxation: 2.0 },
+            ordering: Ordering::Jacobi,
+            relaxation: 2.0,
             ..Default::default()
         },
     )
     .unwrap_err();
     assert_eq!(
         e.to_string(),
-        "xpbd.ordering.relaxation = 2: must lie in the open interval (0, 2)"
+        "xpbd.relaxation = 2: must lie in the open interval (0, 2)"
     );
     let e = XpbdStepper::new(
         &m,

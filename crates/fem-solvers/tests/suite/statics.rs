@@ -1,13 +1,18 @@
 //! The quasi-static solver against beam theory: a cantilever under a small uniform shear
 //! traction on its free end converges under refinement to Timoshenko's deflection (plane
 //! strain modulus), after the locking of coarse linear-triangle meshes; large loads need load
-//! stepping.
+//! stepping. And the stepper over the load factor: it lands on exactly 1, moves prescribed
+//! vertices with the load, halves failed increments (keeping the halved size), stops after
+//! `max_bisections` at the last equilibrium, and does nothing past the end.
 
 use fem_core::energy::{Linear, NeoHookean};
 use fem_core::math::{Real, Vec2};
 use fem_core::{Material, PlaneModel};
 use fem_solvers::testing::{node_index, rectangle_mesh};
-use fem_solvers::{Model, Region, State, StaticParams, StaticSolver};
+use fem_solvers::{
+    Model, NewtonParams, PrescribedMotion, Region, SolverError, State, StaticParams, StaticSolver,
+    StaticStepper, Stepper,
+};
 
 const L: Real = 10.0;
 const H: Real = 1.0;
@@ -139,4 +144,178 @@ fn static_and_implicit_reject_contact() {
     assert!(e.to_string().starts_with("static.contact = "), "{e}");
     let e = fem_solvers::ImplicitStepper::new(&model, Default::default()).unwrap_err();
     assert!(e.to_string().starts_with("implicit.contact = "), "{e}");
+}
+
+/// The Neo-Hookean cantilever of [`deflection`] (`10 ny x ny` cells) under end load `p`.
+fn loaded_cantilever(ny: usize, p: Real) -> Model<NeoHookean> {
+    let mesh = rectangle_mesh(Vec2::zeros(), L, H, 10 * ny, ny).unwrap();
+    let lame = Material::new(E, NU, 1.0)
+        .unwrap()
+        .lame(PlaneModel::PlaneStrain);
+    let mut model = Model::with_density(mesh, NeoHookean::new(lame), 1.0).unwrap();
+    model
+        .pin(&Region::in_box(Vec2::new(0.0, 0.0), Vec2::new(0.0, H)))
+        .unwrap();
+    model
+        .add_traction(
+            &Region::in_box(Vec2::new(L, 0.0), Vec2::new(L, H)),
+            Vec2::new(0.0, -p / H),
+        )
+        .unwrap();
+    model
+}
+
+/// Three increments of 1/3 land on exactly 1 (the sum of the increments rounds to
+/// 0.9999999999999999); the step counter counts them; `dt` is the nominal increment; a step
+/// past the end does nothing.
+#[test]
+fn load_factor_lands_on_one_and_a_step_past_the_end_does_nothing() {
+    let model = loaded_cantilever(2, 100.0);
+    let params = StaticParams {
+        load_steps: 3,
+        ..StaticParams::default()
+    };
+    let mut stepper = StaticStepper::new(&model, params).unwrap();
+    assert_eq!(stepper.dt(), 1.0 / 3.0);
+    let mut state = State::at_rest(&model);
+    let mut factors = vec![];
+    while state.t < 1.0 {
+        let r = stepper.step(&model, &mut state).unwrap();
+        assert!(r.iterations >= 1 && r.residual.is_finite());
+        assert!(state.v.iter().all(|v| *v == Vec2::zeros()));
+        factors.push(state.t);
+    }
+    assert_eq!(factors, vec![1.0 / 3.0, 2.0 / 3.0, 1.0]);
+    assert_eq!(state.step, 3);
+    let done = state.clone();
+    let r = stepper.step(&model, &mut state).unwrap();
+    assert_eq!(r.iterations, 0);
+    assert_eq!(state, done);
+    assert!(r.min_det_f > 0.0 && r.inverted == 0);
+}
+
+/// A prescribed vertex moves by its schedule's whole displacement `velocity * (end - start)`
+/// times the load factor; an endless window on a moving vertex is refused, naming the field.
+#[test]
+fn prescribed_vertices_move_with_the_load_factor() {
+    let lame = Material::new(E, NU, 1.0)
+        .unwrap()
+        .lame(PlaneModel::PlaneStrain);
+    let mesh = rectangle_mesh(Vec2::zeros(), 2.0, 1.0, 8, 4).unwrap();
+    let mut model = Model::with_density(mesh, NeoHookean::new(lame), 1.0).unwrap();
+    model
+        .pin(&Region::in_box(Vec2::new(0.0, 0.0), Vec2::new(0.0, 1.0)))
+        .unwrap();
+    let right = Region::in_box(Vec2::new(2.0, 0.0), Vec2::new(2.0, 1.0));
+    let mut motion = PrescribedMotion {
+        region: right.clone(),
+        velocity: Vec2::new(0.5, 0.0),
+        start: 1.0,
+        end: Real::INFINITY,
+    };
+    let mut endless = model.clone();
+    endless.add_prescribed_motion(motion.clone()).unwrap();
+    let e = StaticStepper::new(&endless, StaticParams::default()).unwrap_err();
+    assert!(
+        e.to_string()
+            .starts_with("prescribed_motion[0].end = inf: must be finite"),
+        "{e}"
+    );
+    // Stretch by 0.5 m/s over [1, 2] s: 0.5 m, a quarter of the length, in 4 increments.
+    motion.end = 2.0;
+    model.add_prescribed_motion(motion).unwrap();
+    let mut stepper = StaticStepper::new(
+        &model,
+        StaticParams {
+            load_steps: 4,
+            ..StaticParams::default()
+        },
+    )
+    .unwrap();
+    let mut state = State::at_rest(&model);
+    let moved = right.select(model.mesh().vertices(), "right").unwrap();
+    for k in 1..=4 {
+        stepper.step(&model, &mut state).unwrap();
+        let factor = Real::from(k) / 4.0;
+        assert_eq!(state.t, factor);
+        for &v in &moved {
+            assert_eq!(
+                state.x[v],
+                model.mesh().vertices()[v] + factor * Vec2::new(0.5, 0.0)
+            );
+        }
+    }
+    // The free vertices followed: the middle of the bar moved about half as far.
+    let mid = node_index(4, 2, 4);
+    let u = state.displacement(&model, mid).x;
+    assert!((u - 0.25).abs() < 0.02, "{u}");
+}
+
+/// Newton starved of iterations (30 where the full load needs 43) fails the whole load; the
+/// increment is halved until it converges and stays halved for the next steps (halved again
+/// where Newton stalls at the round-off floor: measured 8 halvings and 32 increments in all),
+/// and the run ends at the same equilibrium as ten load steps. With no halving allowed, the
+/// step fails at once with the state untouched.
+#[test]
+fn failed_increments_are_halved_then_the_run_stops_at_the_last_equilibrium() {
+    let model = loaded_cantilever(8, 1000.0);
+    let starved = NewtonParams {
+        max_iterations: 30,
+        ..NewtonParams::default()
+    };
+    let mut stepper = StaticStepper::new(
+        &model,
+        StaticParams {
+            load_steps: 1,
+            max_bisections: 10,
+            newton: starved,
+        },
+    )
+    .unwrap();
+    let mut state = State::at_rest(&model);
+    let first = stepper.step(&model, &mut state).unwrap();
+    let halvings = stepper.halvings();
+    assert!(halvings >= 1);
+    assert_eq!(state.t, 0.5f64.powi(halvings as i32));
+    assert_eq!(stepper.increment(), state.t);
+    assert!(
+        first.iterations > 10,
+        "failed attempts count: {}",
+        first.iterations
+    );
+    while state.t < 1.0 {
+        stepper.step(&model, &mut state).unwrap();
+    }
+    eprintln!(
+        "{halvings} halvings in the first step, {} in all, {} increments",
+        stepper.halvings(),
+        state.step,
+    );
+    let tip = node_index(80, 4, 8);
+    let (reference, _) = deflection(8, 1000.0, NeoHookean::new, 10);
+    let d = -state.displacement(&model, tip).y;
+    assert!((d - reference).abs() < 1e-6, "{d} vs {reference}");
+
+    let mut stepper = StaticStepper::new(
+        &model,
+        StaticParams {
+            load_steps: 1,
+            max_bisections: 0,
+            newton: starved,
+        },
+    )
+    .unwrap();
+    let mut state = State::at_rest(&model);
+    let before = state.clone();
+    match stepper.step(&model, &mut state) {
+        Err(SolverError::LoadIncrement {
+            increment: 1,
+            from: 0.0,
+            to: 1.0,
+            halvings: 0,
+            ..
+        }) => {}
+        other => panic!("{other:?}"),
+    }
+    assert_eq!(state, before);
 }

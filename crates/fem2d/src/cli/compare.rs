@@ -4,21 +4,30 @@
 use std::path::PathBuf;
 
 use clap::{Args, ValueEnum};
-use fem_cases::cases::load_case_or_file;
-use fem_cases::compare::{CompareSpec, compare};
+use fem_cases::compare::{CompareSpec, VariantAxis, compare};
+use fem_cases::files::load_case_or_file;
 use fem_cases::run::write_atomic;
-use fem_cases::scene::{SolverKind, XpbdFormName};
 use fem_core::energy::EnergyKind;
+use fem_solvers::SolverKind;
 
 use super::run::SceneArgs;
 
-/// XPBD constraint forms on the command line.
+/// XPBD constraint forms on the command line (the values of the `xpbd_form` parameter).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum Form {
     /// `C = sqrt(2 a psi)`.
     Consistent,
     /// `C = a psi` (the paper's text).
     Literal,
+}
+
+impl Form {
+    fn value(self) -> &'static str {
+        match self {
+            Form::Consistent => "consistent",
+            Form::Literal => "literal",
+        }
+    }
 }
 
 /// Flags of `fem2d compare`.
@@ -33,11 +42,13 @@ pub struct CompareArgs {
         default_value = "stvk,corotational,neo-hookean"
     )]
     pub energies: Vec<String>,
-    /// Solvers (comma-separated): explicit, pbd, xpbd, implicit, static. Implicit and static do
-    /// not handle contact (their rows on a scene with a ground or obstacles carry the error).
-    #[arg(long, value_delimiter = ',', default_value = "explicit,pbd,xpbd")]
+    /// Solvers (comma-separated): explicit, pbd, xpbd, implicit, static (default: the paper's
+    /// frameworks, explicit, pbd and xpbd). Solvers without contact (implicit, static; see
+    /// docs/solvers.md) give an error row on a scene with a ground or obstacles.
+    #[arg(long, value_delimiter = ',')]
     pub solvers: Vec<String>,
-    /// PBD/XPBD iteration counts to compare (comma-separated; default: the scene's).
+    /// Iteration counts to compare, for the solvers that iterate (comma-separated; default:
+    /// the scene's).
     #[arg(long, value_delimiter = ',')]
     pub iterations: Vec<usize>,
     /// XPBD forms to compare (comma-separated; default: the scene's).
@@ -62,47 +73,48 @@ pub fn run(args: &CompareArgs) -> Result<(), String> {
                 .map_err(|err| format!("--energies: {err}"))
         })
         .collect::<Result<Vec<_>, _>>()?;
-    let solvers = args
-        .solvers
-        .iter()
-        .map(|s| {
-            s.parse::<SolverKind>()
-                .map_err(|err| format!("--solvers: {err}"))
-        })
-        .collect::<Result<Vec<_>, _>>()?;
-    if let Some(s) = solvers.iter().find(|s| !SolverKind::AVAILABLE.contains(s)) {
-        let names: Vec<&str> = SolverKind::AVAILABLE.iter().map(|k| k.name()).collect();
-        return Err(format!(
-            "--solvers: `{s}` is not available in this version (available: {})",
-            names.join(", ")
-        ));
-    }
+    let solvers = if args.solvers.is_empty() {
+        SolverKind::ALL
+            .into_iter()
+            .filter(|k| k.capabilities().paper)
+            .collect()
+    } else {
+        args.solvers
+            .iter()
+            .map(|s| {
+                s.parse::<SolverKind>()
+                    .map_err(|err| format!("--solvers: {err}"))
+            })
+            .collect::<Result<Vec<_>, _>>()?
+    };
     if let Some(0) = args.iterations.iter().copied().find(|&n| n == 0) {
         return Err("--iterations: 0 is not allowed (>= 1)".into());
     }
+    // The forms first, so a row reads `consistent, 20 it`.
+    let variants = vec![
+        VariantAxis {
+            key: "xpbd_form".into(),
+            values: args.xpbd_forms.iter().map(|f| f.value().into()).collect(),
+        },
+        VariantAxis {
+            key: "iterations".into(),
+            values: args
+                .iterations
+                .iter()
+                .map(|&n| toml::Value::Integer(n as i64))
+                .collect(),
+        },
+    ];
     let spec = CompareSpec {
         energies,
         solvers,
-        iterations: args.iterations.clone(),
-        xpbd_forms: args
-            .xpbd_forms
-            .iter()
-            .map(|f| match f {
-                Form::Consistent => XpbdFormName::Consistent,
-                Form::Literal => XpbdFormName::Literal,
-            })
-            .collect(),
+        variants,
         threads: args.threads,
         snapshot_every: None,
     };
-    let load = |extra: &[String]| {
-        let mut o = extra.to_vec();
-        o.extend(args.scene.set.iter().cloned());
-        load_case_or_file(&args.scene.scene, &o)
-    };
-    // Fail early, before any run, when the scene itself is bad.
-    load(&[]).map_err(|e| e.to_string())?;
-    let table = compare(&load, &spec).map_err(|e| e.to_string())?;
+    // Fails before any run when the scene itself is bad.
+    let base = load_case_or_file(&args.scene.scene, &args.scene.set).map_err(|e| e.to_string())?;
+    let table = compare(&base, &spec).map_err(|e| e.to_string())?;
     let md = table.to_markdown();
     print!("{md}");
     if let Some(dir) = &args.out {

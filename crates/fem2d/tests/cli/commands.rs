@@ -2,9 +2,7 @@
 //! cover a sweep exactly once, the merge's refusal of incomplete or mixed shards, and one-line
 //! errors for bad input.
 
-mod common;
-
-use common::{arg, fem2d, scratch};
+use crate::common::{arg, fem2d, scratch};
 use std::process::Output;
 
 fn ok(out: &Output) -> String {

@@ -4,8 +4,6 @@
 use std::path::PathBuf;
 
 use clap::Args;
-use fem_cases::build::preset_camera;
-use fem_cases::scene::ViewName as View;
 use fem_mesh::alpha::{AlphaParams, Components};
 use fem_mesh::body::human_body;
 use fem_mesh::camera::{Camera, Projection, ProjectionParams};
@@ -14,6 +12,8 @@ use fem_mesh::load::{LoadOptions, load_model};
 use fem_mesh::pipeline::{PipelineOutput, PipelineParams, mesh_surface};
 use fem_mesh::preview::{PREVIEW_FILES, PreviewParams, write_previews};
 use fem_mesh::triangulate::TriangulateParams;
+use fem_scene::build::preset_camera;
+use fem_scene::scene::ViewName as View;
 
 /// Flags of `fem2d mesh`. Lengths are in model units times `--scale` (metres for the built-in
 /// body and for the MakeHuman body with `--scale 0.1`).
@@ -35,7 +35,7 @@ pub struct MeshArgs {
     #[arg(long, default_value_t = 1.0)]
     pub scale: f64,
     /// Preset camera direction; the focal point is the model's bounding-box centre.
-    #[arg(long, value_enum, default_value_t = View::Side)]
+    #[arg(long, value_parser = parse_view, default_value = "side")]
     pub view: View,
     /// Camera position c as X,Y,Z (overrides the preset).
     #[arg(long, value_parser = parse_vec3, value_name = "X,Y,Z", allow_hyphen_values = true)]
@@ -302,4 +302,9 @@ fn print_summary(out: &PipelineOutput) {
         ms(tm.triangulate),
         ms(tm.quality)
     );
+}
+
+/// `--view`: a camera preset by name.
+fn parse_view(s: &str) -> Result<View, String> {
+    s.parse()
 }

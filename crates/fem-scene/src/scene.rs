@@ -17,9 +17,11 @@ use std::str::FromStr;
 
 use fem_core::PlaneModel;
 use fem_core::energy::EnergyKind;
+use fem_mesh::structured::Diagonal;
 use serde::{Deserialize, Serialize};
 
-use crate::error::CaseError;
+use crate::error::SceneError;
+use crate::solver_spec::SolverSpec;
 
 /// A whole simulation, as read from a scene file.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
@@ -36,8 +38,9 @@ pub struct Scene {
     pub material: MaterialSpec,
     /// The elastic energy. Default `neo-hookean`.
     #[serde(default = "default_energy")]
-    pub energy: EnergyChoice,
-    /// The time stepper and its parameters.
+    pub energy: EnergyKind,
+    /// The solver (any of the registry, [`fem_solvers::SolverKind`]), the time step, the step
+    /// count and every solver's parameters.
     pub solver: SolverSpec,
     /// Gravitational acceleration, m/s^2. Default `[0, -9.8]`.
     #[serde(default = "default_gravity")]
@@ -68,32 +71,12 @@ pub struct Scene {
     pub output: OutputSpec,
 }
 
-fn default_energy() -> EnergyChoice {
-    EnergyChoice(EnergyKind::NeoHookean)
+fn default_energy() -> EnergyKind {
+    EnergyKind::NeoHookean
 }
 
 fn default_gravity() -> [f64; 2] {
     [0.0, -fem_solvers::model::STANDARD_GRAVITY]
-}
-
-/// An energy name (`stvk`, `corotational`, `neo-hookean`, `stable-neo-hookean`, `linear`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(try_from = "String", into = "String")]
-pub struct EnergyChoice(pub EnergyKind);
-
-impl TryFrom<String> for EnergyChoice {
-    type Error = String;
-    fn try_from(s: String) -> Result<Self, String> {
-        EnergyKind::from_str(&s)
-            .map(EnergyChoice)
-            .map_err(|e| e.to_string())
-    }
-}
-
-impl From<EnergyChoice> for String {
-    fn from(e: EnergyChoice) -> String {
-        e.0.name().to_owned()
-    }
 }
 
 /// How the mesh is made.
@@ -110,23 +93,8 @@ pub enum MeshKind {
     Body,
 }
 
-/// Diagonal pattern of a structured rectangle.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum DiagonalName {
-    /// `/` in every cell.
-    #[default]
-    Right,
-    /// `\` in every cell.
-    Left,
-    /// `/` and `\` in a checkerboard.
-    Alternating,
-    /// Four triangles per cell around its centre.
-    Crossed,
-}
-
 /// Camera preset of the mesh pipeline (model +Y up, +Z forward).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum ViewName {
     /// From the model's right (-X) side: image (z, y).
@@ -138,6 +106,36 @@ pub enum ViewName {
     Back,
     /// From above (+Y): image (x, -z).
     Top,
+}
+
+impl ViewName {
+    /// Every preset.
+    pub const ALL: [ViewName; 4] = [
+        ViewName::Side,
+        ViewName::Front,
+        ViewName::Back,
+        ViewName::Top,
+    ];
+
+    /// The name in files and on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            ViewName::Side => "side",
+            ViewName::Front => "front",
+            ViewName::Back => "back",
+            ViewName::Top => "top",
+        }
+    }
+}
+
+impl FromStr for ViewName {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        ViewName::ALL
+            .into_iter()
+            .find(|v| v.name() == s)
+            .ok_or_else(|| format!("unknown view `{s}` (expected one of: side, front, back, top)"))
+    }
 }
 
 /// The `[mesh]` table. Which fields apply depends on `kind`; a field that does not apply to
@@ -156,7 +154,7 @@ pub struct MeshSpec {
     /// Rectangle: cells along y.
     pub ny: Option<usize>,
     /// Rectangle: diagonal pattern. Default `right`.
-    pub diagonal: Option<DiagonalName>,
+    pub diagonal: Option<Diagonal>,
     /// Rectangle: lower-left corner, m. Default `[0, 0]`.
     pub origin: Option<[f64; 2]>,
     /// File and model: the file, relative to the scene file's directory.
@@ -197,211 +195,7 @@ pub struct MaterialSpec {
     pub density: Option<f64>,
     /// `plane-strain` (default; the paper's Lamé parameters) or `plane-stress`.
     #[serde(default)]
-    pub plane: PlaneName,
-}
-
-/// Plane model name.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum PlaneName {
-    /// Plane strain (the paper's Eq. 2 Lamé parameters).
-    #[default]
-    PlaneStrain,
-    /// Plane stress.
-    PlaneStress,
-}
-
-impl PlaneName {
-    /// The fem-core plane model.
-    pub fn model(self) -> PlaneModel {
-        match self {
-            PlaneName::PlaneStrain => PlaneModel::PlaneStrain,
-            PlaneName::PlaneStress => PlaneModel::PlaneStress,
-        }
-    }
-}
-
-/// Solver names.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum SolverKind {
-    /// Explicit FEM (Algorithm I).
-    Explicit,
-    /// Energy-based PBD.
-    Pbd,
-    /// Energy-based XPBD.
-    Xpbd,
-    /// Implicit (backward) Euler: Newton on the incremental potential.
-    Implicit,
-    /// Quasi-static equilibrium under the full load, reached in load increments.
-    Static,
-}
-
-impl SolverKind {
-    /// Every solver name.
-    pub const ALL: [SolverKind; 5] = [
-        SolverKind::Explicit,
-        SolverKind::Pbd,
-        SolverKind::Xpbd,
-        SolverKind::Implicit,
-        SolverKind::Static,
-    ];
-
-    /// The solvers this version runs (all of them).
-    pub const AVAILABLE: [SolverKind; 5] = SolverKind::ALL;
-
-    /// Whether the solver handles contact (a ground or obstacles): explicit, PBD and XPBD do,
-    /// the Newton-based implicit and static solvers do not.
-    pub fn handles_contact(self) -> bool {
-        matches!(
-            self,
-            SolverKind::Explicit | SolverKind::Pbd | SolverKind::Xpbd
-        )
-    }
-
-    /// Whether the solver runs Newton's method (implicit, static).
-    pub fn uses_newton(self) -> bool {
-        matches!(self, SolverKind::Implicit | SolverKind::Static)
-    }
-
-    /// The name on the command line and in files.
-    pub fn name(self) -> &'static str {
-        match self {
-            SolverKind::Explicit => "explicit",
-            SolverKind::Pbd => "pbd",
-            SolverKind::Xpbd => "xpbd",
-            SolverKind::Implicit => "implicit",
-            SolverKind::Static => "static",
-        }
-    }
-}
-
-impl fmt::Display for SolverKind {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.name())
-    }
-}
-
-impl FromStr for SolverKind {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        SolverKind::ALL
-            .into_iter()
-            .find(|k| k.name() == s)
-            .ok_or_else(|| {
-                format!(
-                    "unknown solver `{s}` (expected one of: explicit, pbd, xpbd, implicit, static)"
-                )
-            })
-    }
-}
-
-/// Explicit update scheme name.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum SchemeName {
-    /// Symplectic Euler (default).
-    #[default]
-    Symplectic,
-    /// Forward Euler (Algorithm I as printed).
-    ForwardEuler,
-}
-
-/// XPBD constraint form name.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum XpbdFormName {
-    /// `C = sqrt(2 a psi)` (default).
-    #[default]
-    Consistent,
-    /// `C = a psi` (the paper's text).
-    Literal,
-}
-
-/// Constraint ordering name.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum OrderingName {
-    /// Serial Gauss-Seidel in triangle order.
-    GaussSeidel,
-    /// Gauss-Seidel by colour classes, each class in parallel (default).
-    #[default]
-    Coloured,
-    /// Jacobi with relaxation `relaxation`.
-    Jacobi,
-}
-
-/// The `[solver]` table.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct SolverSpec {
-    /// Which solver. Default `explicit`.
-    #[serde(default = "default_solver")]
-    pub kind: SolverKind,
-    /// Time step, s (> 0).
-    pub dt: f64,
-    /// Number of steps (>= 1).
-    pub steps: u64,
-    /// Velocity damping rate c, 1/s (`v <- v exp(-c dt)`). Default 0.
-    #[serde(default)]
-    pub damping: f64,
-    /// Explicit: update scheme. Default `symplectic`.
-    #[serde(default)]
-    pub scheme: SchemeName,
-    /// PBD/XPBD: constraint sweeps per substep. Default 10.
-    #[serde(default = "default_iterations")]
-    pub iterations: usize,
-    /// PBD/XPBD: substeps per step. Default 1.
-    #[serde(default = "default_substeps")]
-    pub substeps: usize,
-    /// PBD: stiffness in (0, 1]. Default 1.
-    #[serde(default = "one")]
-    pub stiffness: f64,
-    /// XPBD: compliance (consistent form: 1 = the material's own stiffness). Default 1.
-    #[serde(default = "one")]
-    pub compliance: f64,
-    /// XPBD: constraint form. Default `consistent`.
-    #[serde(default)]
-    pub xpbd_form: XpbdFormName,
-    /// PBD/XPBD: constraint ordering. Default `coloured`.
-    #[serde(default)]
-    pub ordering: OrderingName,
-    /// PBD/XPBD with `ordering = "jacobi"`: relaxation in (0, 2). Default 1.
-    #[serde(default = "one")]
-    pub relaxation: f64,
-    /// Implicit/static: Newton's relative tolerance on the residual (the force imbalance),
-    /// in (0, 1). Default 1e-8.
-    #[serde(default = "default_tolerance")]
-    pub tolerance: f64,
-    /// Implicit/static: most Newton iterations per solve (a step or a load increment).
-    /// Default 50.
-    #[serde(default = "default_max_iterations")]
-    pub max_iterations: usize,
-    /// Static: equal load increments from no load to the full load (>= 1). Default 1.
-    #[serde(default = "default_load_steps")]
-    pub load_steps: usize,
-}
-
-fn default_solver() -> SolverKind {
-    SolverKind::Explicit
-}
-fn default_iterations() -> usize {
-    10
-}
-fn default_substeps() -> usize {
-    1
-}
-fn default_tolerance() -> f64 {
-    1e-8
-}
-fn default_max_iterations() -> usize {
-    50
-}
-fn default_load_steps() -> usize {
-    1
-}
-fn one() -> f64 {
-    1.0
+    pub plane: PlaneModel,
 }
 
 /// A box of rest positions, m (closed, with a 1e-9 m margin).
@@ -571,8 +365,8 @@ impl LoadedScene {
     }
 
     /// An error naming this scene, a field and a value.
-    pub fn error(&self, field: &str, value: impl fmt::Display, rule: &str) -> CaseError {
-        CaseError::Scene(format!("{}: {field} = {value}: {rule}", self.origin))
+    pub fn error(&self, field: &str, value: impl fmt::Display, rule: &str) -> SceneError {
+        SceneError::Scene(format!("{}: {field} = {value}: {rule}", self.origin))
     }
 }
 
@@ -582,7 +376,7 @@ pub fn parse_scene(
     origin: &str,
     base_dir: &Path,
     overrides: &[String],
-) -> Result<LoadedScene, CaseError> {
+) -> Result<LoadedScene, SceneError> {
     let mut table: toml::Table = text.parse().map_err(|e: toml::de::Error| {
         let place = e
             .span()
@@ -591,24 +385,35 @@ pub fn parse_scene(
                 format!(":{line}:{col}")
             })
             .unwrap_or_default();
-        CaseError::Scene(format!(
+        SceneError::Scene(format!(
             "{origin}{place}: {}",
             e.message().trim().replace('\n', " ")
         ))
     })?;
     for o in overrides {
-        apply_override(&mut table, o).map_err(|m| CaseError::Scene(format!("{origin}: {m}")))?;
+        apply_override(&mut table, o).map_err(|m| SceneError::Scene(format!("{origin}: {m}")))?;
     }
     let scene: Scene = serde_path_to_error::deserialize(toml::Value::Table(table)).map_err(
         |e: serde_path_to_error::Error<toml::de::Error>| {
             // serde writes array elements as `pinned[0].max`; --set and the checks below use
             // `pinned.0.max`: one spelling everywhere.
-            let path = e.path().to_string().replace('[', ".").replace(']', "");
-            let inner = e.inner().message().trim().replace('\n', " ");
+            let mut path = e.path().to_string().replace('[', ".").replace(']', "");
+            let mut inner = e.inner().message().trim().replace('\n', " ");
+            // The solver table is read by `SolverSpec`, whose messages start with the key
+            // (`iterations: invalid type ...`): join it to the path as any other field.
+            if path == "solver" {
+                if let Some((key, rest)) = inner.split_once(": ") {
+                    if !key.is_empty() && key.chars().all(|c| c.is_ascii_alphanumeric() || c == '_')
+                    {
+                        path = format!("solver.{key}");
+                        inner = rest.to_owned();
+                    }
+                }
+            }
             if path == "." || path.is_empty() {
-                CaseError::Scene(format!("{origin}: {inner}"))
+                SceneError::Scene(format!("{origin}: {inner}"))
             } else {
-                CaseError::Scene(format!("{origin}: {path}: {inner}"))
+                SceneError::Scene(format!("{origin}: {path}: {inner}"))
             }
         },
     )?;
@@ -619,21 +424,6 @@ pub fn parse_scene(
     };
     loaded.validate()?;
     Ok(loaded)
-}
-
-/// Read and parse a scene file.
-pub fn load_scene_file(path: &Path, overrides: &[String]) -> Result<LoadedScene, CaseError> {
-    let text = std::fs::read_to_string(path).map_err(|e| {
-        CaseError::Io(format!(
-            "{}: cannot read the scene file: {e}",
-            path.display()
-        ))
-    })?;
-    let base = path
-        .parent()
-        .map(Path::to_path_buf)
-        .unwrap_or_else(|| PathBuf::from("."));
-    parse_scene(&text, &path.display().to_string(), &base, overrides)
 }
 
 fn line_col(text: &str, offset: usize) -> (usize, usize) {
@@ -728,37 +518,37 @@ fn parse_override_value(raw: &str) -> toml::Value {
 impl LoadedScene {
     /// Check every value; the first problem is returned as a one-line error naming the scene
     /// file, the field and the value.
-    pub fn validate(&self) -> Result<(), CaseError> {
+    pub fn validate(&self) -> Result<(), SceneError> {
         let s = &self.scene;
-        let finite = |field: &str, v: f64| -> Result<(), CaseError> {
+        let finite = |field: &str, v: f64| -> Result<(), SceneError> {
             if v.is_finite() {
                 Ok(())
             } else {
                 Err(self.error(field, v, "must be a finite number"))
             }
         };
-        let positive = |field: &str, v: f64, unit: &str| -> Result<(), CaseError> {
+        let positive = |field: &str, v: f64, unit: &str| -> Result<(), SceneError> {
             if v.is_finite() && v > 0.0 {
                 Ok(())
             } else {
                 Err(self.error(field, v, &format!("must be a finite number > 0 ({unit})")))
             }
         };
-        let non_negative = |field: &str, v: f64, unit: &str| -> Result<(), CaseError> {
+        let non_negative = |field: &str, v: f64, unit: &str| -> Result<(), SceneError> {
             if v.is_finite() && v >= 0.0 {
                 Ok(())
             } else {
                 Err(self.error(field, v, &format!("must be a finite number >= 0 ({unit})")))
             }
         };
-        let point = |field: &str, p: [f64; 2]| -> Result<(), CaseError> {
+        let point = |field: &str, p: [f64; 2]| -> Result<(), SceneError> {
             if p.iter().all(|c| c.is_finite()) {
                 Ok(())
             } else {
                 Err(self.error(field, fmt_point(p), "must have finite coordinates"))
             }
         };
-        let boxed = |field: &str, min: [f64; 2], max: [f64; 2]| -> Result<(), CaseError> {
+        let boxed = |field: &str, min: [f64; 2], max: [f64; 2]| -> Result<(), SceneError> {
             point(&format!("{field}.min"), min)?;
             point(&format!("{field}.max"), max)?;
             if min[0] > max[0] || min[1] > max[1] {
@@ -808,59 +598,29 @@ impl LoadedScene {
         }
 
         let v = &s.solver;
-        if !SolverKind::AVAILABLE.contains(&v.kind) {
-            let names: Vec<&str> = SolverKind::AVAILABLE.iter().map(|k| k.name()).collect();
+        if !v.kind.capabilities().contact && (s.ground.is_some() || !s.obstacles.is_empty()) {
+            let with: Vec<&str> = fem_solvers::SolverKind::ALL
+                .iter()
+                .filter(|k| k.capabilities().contact)
+                .map(|k| k.name())
+                .collect();
             return Err(self.error(
                 "solver.kind",
                 v.kind,
                 &format!(
-                    "is not available in this version (available: {})",
-                    names.join(", ")
+                    "does not handle contact and the scene has a ground or obstacles (contact needs {})",
+                    with.join(", ")
                 ),
-            ));
-        }
-        if !v.kind.handles_contact() && (s.ground.is_some() || !s.obstacles.is_empty()) {
-            return Err(self.error(
-                "solver.kind",
-                v.kind,
-                "does not handle contact and the scene has a ground or obstacles (contact needs explicit, pbd or xpbd)",
             ));
         }
         positive("solver.dt", v.dt, "s")?;
         if v.steps == 0 {
             return Err(self.error("solver.steps", 0, "must be >= 1"));
         }
-        non_negative("solver.damping", v.damping, "1/s")?;
-        if v.iterations == 0 {
-            return Err(self.error("solver.iterations", 0, "must be >= 1"));
-        }
-        if v.substeps == 0 {
-            return Err(self.error("solver.substeps", 0, "must be >= 1"));
-        }
-        if !(v.stiffness > 0.0 && v.stiffness <= 1.0) {
-            return Err(self.error("solver.stiffness", v.stiffness, "must lie in (0, 1]"));
-        }
-        non_negative("solver.compliance", v.compliance, "dimensionless")?;
-        if !(v.relaxation > 0.0 && v.relaxation < 2.0) {
-            return Err(self.error(
-                "solver.relaxation",
-                v.relaxation,
-                "must lie in the open interval (0, 2)",
-            ));
-        }
-        if !(v.tolerance > 0.0 && v.tolerance < 1.0) {
-            return Err(self.error(
-                "solver.tolerance",
-                v.tolerance,
-                "must lie in the open interval (0, 1) (relative to the force scale)",
-            ));
-        }
-        if v.max_iterations == 0 {
-            return Err(self.error("solver.max_iterations", 0, "must be >= 1"));
-        }
-        if v.load_steps == 0 {
-            return Err(self.error("solver.load_steps", 0, "must be >= 1"));
-        }
+        // The solvers' own rules, each in its parameter struct (fem-solvers), for every
+        // solver's parameters: a scene is valid whichever solver it is later run with.
+        v.validate()
+            .map_err(|e| SceneError::Scene(format!("{}: {e}", self.origin)))?;
 
         point("gravity", s.gravity)?;
         for (i, r) in s.pinned.iter().enumerate() {
@@ -921,7 +681,7 @@ impl LoadedScene {
                     "must be counter-clockwise with positive area",
                 ));
             }
-            let unexpected = |name: &str, present: bool| -> Result<(), CaseError> {
+            let unexpected = |name: &str, present: bool| -> Result<(), SceneError> {
                 if present {
                     Err(self.error(
                         &format!("{f}.{name}"),
@@ -1024,7 +784,7 @@ impl LoadedScene {
         Ok(())
     }
 
-    fn validate_mesh(&self) -> Result<(), CaseError> {
+    fn validate_mesh(&self) -> Result<(), SceneError> {
         let m = &self.scene.mesh;
         let kind = m.kind.ok_or_else(|| {
             self.error(
@@ -1075,7 +835,7 @@ impl LoadedScene {
                 ));
             }
         }
-        let need = |name: &str, present: bool| -> Result<(), CaseError> {
+        let need = |name: &str, present: bool| -> Result<(), SceneError> {
             if present {
                 Ok(())
             } else {
@@ -1086,7 +846,7 @@ impl LoadedScene {
                 ))
             }
         };
-        let positive = |name: &str, v: Option<f64>| -> Result<(), CaseError> {
+        let positive = |name: &str, v: Option<f64>| -> Result<(), SceneError> {
             match v {
                 Some(v) if !(v.is_finite() && v > 0.0) => {
                     Err(self.error(&format!("mesh.{name}"), v, "must be a finite number > 0"))

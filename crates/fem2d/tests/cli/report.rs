@@ -6,13 +6,11 @@
 //! `.ci/run` installs). Without it the test says so and checks only the files, unless
 //! `FEM2D_REQUIRE_BROWSER=1` (set by `.ci/run`), which makes a missing browser a failure.
 
-mod common;
-
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::OnceLock;
 
-use common::{arg, fem2d, read, scratch};
+use crate::common::{arg, fem2d, read, scratch};
 use fem_render::Image;
 
 /// The report, built once for the tests of this file.

@@ -2,14 +2,12 @@
 //! values equal the run's own probes), bad picture flags, and the case D stress map, whose
 //! hottest pixel must lie under the debris.
 
-mod common;
-
-use common::{arg, fem2d, one_line_error, read, run_ok, scratch};
-use fem_cases::cases::load_case;
+use crate::common::{arg, fem2d, one_line_error, read, run_ok, scratch};
 use fem_cases::pictures::{FieldKind, FramePicture, render_side_by_side};
 use fem_cases::run::{RunOptions, run_scene};
 use fem_render::Image;
 use fem_render::colormap::Colormap;
+use fem_scene::cases::load_case;
 
 fn gif_frames(path: &std::path::Path) -> (usize, u16, u16) {
     let file = std::fs::File::open(path).unwrap();
@@ -57,7 +55,7 @@ fn run_writes_png_gif_and_vtk() {
     assert_eq!(pvd.len(), 21);
     assert!((pvd[20].0 - 0.2).abs() < 1e-12, "last time {}", pvd[20].0);
     let last = fem_render::vtk::read_vtu(&pvd[20].1).unwrap();
-    let summary = common::json(&dir.join("summary.json"));
+    let summary = crate::common::json(&dir.join("summary.json"));
     assert_eq!(
         last.cells.len(),
         summary["triangles"].as_u64().unwrap() as usize

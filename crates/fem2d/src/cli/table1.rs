@@ -60,7 +60,7 @@ pub fn run(args: &Table1Args) -> Result<(), String> {
         let base = scene_setting(&args.set).map_err(|e| e.to_string())?;
         text.push_str(&format!(
             "Sensitivity around {}x{} cells, {} diagonals, c = {} 1/s, tip [{}, {}] m: one factor varied at a time.\n",
-            base.cells[0], base.cells[1], base.diagonal, base.damping, base.tip[0], base.tip[1]
+            base.cells[0], base.cells[1], base.diagonal.name(), base.damping, base.tip[0], base.tip[1]
         ));
         text.push_str(&sensitivity(&base, &CalibrationGrid::default()).map_err(|e| e.to_string())?);
     } else {

@@ -1,29 +1,68 @@
 //! From a validated scene to the pieces of a run: the mesh, the model (masses, boundary
-//! conditions, gravity, tractions, ground, obstacles), the probes' vertices and the stepper (or,
-//! for `static`, the quasi-static solver's parameters).
+//! conditions, gravity, tractions, ground, obstacles), the probes' vertices and the stepper
+//! (any solver of the registry, built from its own parameters).
+//!
+//! Mesh and model files are not opened here: a [`MeshSource`] supplied by the caller returns
+//! their bytes by the name the scene gives (`mesh.path`).
+
+use std::path::Path;
 
 use fem_core::energy::{AnyEnergy, Energy};
 use fem_core::math::{Real, Vec2};
 use fem_core::mesh::Mesh;
 use fem_core::stress::VonMisesFormula;
-use fem_core::{Lame, Material};
+use fem_core::{Lame, Material, PlaneModel};
 use fem_mesh::Mesh2;
 use fem_mesh::camera::{Camera, Projection};
 use fem_mesh::pipeline::{PipelineParams, mesh_surface};
-use fem_mesh::structured::{Diagonal, RectangleParams, rectangle};
+use fem_mesh::structured::{RectangleParams, rectangle};
 use fem_mesh::triangulate::TriangulateParams;
 use fem_solvers::{
-    ContactParams, ExplicitParams, ExplicitScheme, ExplicitStepper, Ground, ImplicitParams,
-    ImplicitStepper, Model, NewtonParams, ObstacleMotion, Ordering, PbdParams, PbdStepper,
-    PrescribedMotion, Region, SolverError, State, StaticParams, StepReport, Stepper, XpbdForm,
-    XpbdParams, XpbdStepper,
+    AnyStepper, Clock, ContactParams, Ground, Model, ObstacleMotion, PrescribedMotion, Region,
+    SolverError,
 };
 
-use crate::error::CaseError;
-use crate::scene::{
-    DiagonalName, LoadedScene, MeshKind, MotionName, OrderingName, PlaneName, SchemeName,
-    SolverKind, ViewName, XpbdFormName,
-};
+use crate::error::SceneError;
+use crate::scene::{LoadedScene, MeshKind, MotionName, ViewName};
+
+/// Where the bytes of the files a scene names (`mesh.path`: a mesh JSON or a 3D model) come
+/// from: the file system next to the scene file for the command line, memory in a browser.
+pub trait MeshSource {
+    /// The bytes of the file the scene names `name` (as written in the scene); the error is a
+    /// one-line reason (it is prefixed with the name).
+    fn read(&self, name: &str) -> Result<Vec<u8>, String>;
+}
+
+/// A [`MeshSource`] without files: every name is an error. Scenes with a rectangle or the
+/// built-in body need no file.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct NoFiles;
+
+impl MeshSource for NoFiles {
+    fn read(&self, name: &str) -> Result<Vec<u8>, String> {
+        Err(format!(
+            "no file source was given, so `{name}` cannot be read (the scene needs a mesh or model file)"
+        ))
+    }
+}
+
+/// The bytes of the scene's `mesh.path`, through `source`.
+fn read_named(
+    scene: &LoadedScene,
+    source: &dyn MeshSource,
+) -> Result<(String, Vec<u8>), SceneError> {
+    let name = scene
+        .scene
+        .mesh
+        .path
+        .as_deref()
+        .map(|p| p.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let bytes = source
+        .read(&name)
+        .map_err(|e| SceneError::Io(format!("{}: mesh.path = {name}: {e}", scene.origin)))?;
+    Ok((name, bytes))
+}
 
 /// The camera of a preset view of a surface with bounds `lo`..`hi`: orthographic, aimed at
 /// the bounding-box centre from twice the diagonal away.
@@ -46,10 +85,12 @@ pub fn preset_camera(view: ViewName, lo: [f64; 3], hi: [f64; 3]) -> Camera {
     }
 }
 
-/// The scene's mesh: generated, read or meshed from a 3D model, then rotated and placed.
-pub fn build_mesh(scene: &LoadedScene) -> Result<Mesh, CaseError> {
+/// The scene's mesh: generated, read (through `source`) or meshed from a 3D model, then
+/// rotated and placed.
+pub fn build_mesh(scene: &LoadedScene, source: &dyn MeshSource) -> Result<Mesh, SceneError> {
     let spec = &scene.scene.mesh;
-    let mesh_err = |e: fem_mesh::MeshError| CaseError::Mesh(format!("{}: mesh: {e}", scene.origin));
+    let mesh_err =
+        |e: fem_mesh::MeshError| SceneError::Mesh(format!("{}: mesh: {e}", scene.origin));
     let mut mesh2: Mesh2 = match spec.kind.unwrap_or(MeshKind::Rectangle) {
         MeshKind::Rectangle => rectangle(&RectangleParams {
             origin: spec.origin.unwrap_or([0.0, 0.0]),
@@ -57,23 +98,17 @@ pub fn build_mesh(scene: &LoadedScene) -> Result<Mesh, CaseError> {
             height: spec.height.unwrap_or(1.0),
             nx: spec.nx.unwrap_or(1),
             ny: spec.ny.unwrap_or(1),
-            diagonal: match spec.diagonal.unwrap_or_default() {
-                DiagonalName::Right => Diagonal::Right,
-                DiagonalName::Left => Diagonal::Left,
-                DiagonalName::Alternating => Diagonal::Alternating,
-                DiagonalName::Crossed => Diagonal::Crossed,
-            },
+            diagonal: spec.diagonal.unwrap_or_default(),
         })
         .map_err(mesh_err)?,
         MeshKind::File => {
-            let path = scene.resolve(spec.path.as_deref().unwrap_or("".as_ref()));
-            fem_mesh::io::read_mesh_json(&path).map_err(mesh_err)?
+            let (name, bytes) = read_named(scene, source)?;
+            fem_mesh::io::parse_mesh_json(&bytes, Path::new(&name)).map_err(mesh_err)?
         }
-        MeshKind::Model | MeshKind::Body => {
-            mesh_pipeline(scene)?
-                .expect("a model or body mesh goes through the pipeline")
-                .mesh
-        }
+        MeshKind::Model | MeshKind::Body => match mesh_pipeline(scene, source)? {
+            Some(out) => out.mesh,
+            None => unreachable!("a model or body mesh goes through the pipeline"),
+        },
     };
     place(&mut mesh2, spec.rotate_deg.unwrap_or(0.0), spec.align_min);
     let vertices = mesh2
@@ -87,7 +122,7 @@ pub fn build_mesh(scene: &LoadedScene) -> Result<Mesh, CaseError> {
         .map(|t| t.map(|i| i as u32))
         .collect();
     Mesh::new(vertices, triangles)
-        .map_err(|e| CaseError::Mesh(format!("{}: mesh: {e}", scene.origin)))
+        .map_err(|e| SceneError::Mesh(format!("{}: mesh: {e}", scene.origin)))
 }
 
 /// The mesh pipeline's output (every stage, for Figure 1) for a scene whose mesh comes from a
@@ -95,24 +130,26 @@ pub fn build_mesh(scene: &LoadedScene) -> Result<Mesh, CaseError> {
 /// other mesh kinds.
 pub fn mesh_pipeline(
     scene: &LoadedScene,
-) -> Result<Option<fem_mesh::pipeline::PipelineOutput>, CaseError> {
+    source: &dyn MeshSource,
+) -> Result<Option<fem_mesh::pipeline::PipelineOutput>, SceneError> {
     let spec = &scene.scene.mesh;
-    let mesh_err = |e: fem_mesh::MeshError| CaseError::Mesh(format!("{}: mesh: {e}", scene.origin));
+    let mesh_err =
+        |e: fem_mesh::MeshError| SceneError::Mesh(format!("{}: mesh: {e}", scene.origin));
     let kind = spec.kind.unwrap_or(MeshKind::Rectangle);
     let mut surface = match kind {
         MeshKind::Model => {
-            let path = scene.resolve(spec.path.as_deref().unwrap_or("".as_ref()));
+            let (name, bytes) = read_named(scene, source)?;
             let options = fem_mesh::load::LoadOptions {
                 groups: spec.groups.clone().unwrap_or_default(),
             };
-            fem_mesh::load::load_model(&path, &options).map_err(mesh_err)?
+            fem_mesh::load::parse_model(&bytes, Path::new(&name), &options).map_err(mesh_err)?
         }
         MeshKind::Body => fem_mesh::body::human_body(),
         MeshKind::Rectangle | MeshKind::File => return Ok(None),
     };
     surface.scale(spec.scale.unwrap_or(1.0));
     let (lo, hi) = surface.bounds().ok_or_else(|| {
-        CaseError::Mesh(format!("{}: mesh: the model has no vertex", scene.origin))
+        SceneError::Mesh(format!("{}: mesh: the model has no vertex", scene.origin))
     })?;
     let params = PipelineParams {
         camera: preset_camera(spec.view.unwrap_or_default(), lo, hi),
@@ -154,33 +191,33 @@ fn place(mesh: &mut Mesh2, deg: f64, align_min: Option<[f64; 2]>) {
 }
 
 /// The material's Lamé parameters (plane model from the scene).
-pub fn lame(scene: &LoadedScene) -> Result<Lame, CaseError> {
+pub fn lame(scene: &LoadedScene) -> Result<Lame, SceneError> {
     let m = &scene.scene.material;
     // The density passed here only matters for wave speeds; masses come from the model.
     let material = Material::new(m.youngs_modulus, m.poisson_ratio, 1.0)
-        .map_err(|e| CaseError::Scene(format!("{}: material: {e}", scene.origin)))?;
-    Ok(material.lame(m.plane.model()))
+        .map_err(|e| SceneError::Scene(format!("{}: material: {e}", scene.origin)))?;
+    Ok(material.lame(m.plane))
 }
 
 /// The von Mises formula matching the scene's plane model.
 pub fn von_mises_formula(scene: &LoadedScene) -> VonMisesFormula {
     match scene.scene.material.plane {
-        PlaneName::PlaneStrain => VonMisesFormula::PlaneStrain {
+        PlaneModel::PlaneStrain => VonMisesFormula::PlaneStrain {
             poisson_ratio: scene.scene.material.poisson_ratio,
         },
-        PlaneName::PlaneStress => VonMisesFormula::PlaneStress,
+        PlaneModel::PlaneStress => VonMisesFormula::PlaneStress,
     }
 }
 
 /// The scene's energy.
-pub fn energy(scene: &LoadedScene) -> Result<AnyEnergy, CaseError> {
-    let kind = scene.scene.energy.0;
+pub fn energy(scene: &LoadedScene) -> Result<AnyEnergy, SceneError> {
+    let kind = scene.scene.energy;
     kind.build(lame(scene)?)
-        .map_err(|e| CaseError::Scene(format!("{}: energy = {kind}: {e}", scene.origin)))
+        .map_err(|e| SceneError::Scene(format!("{}: energy = {kind}: {e}", scene.origin)))
 }
 
-fn solver_err(scene: &LoadedScene) -> impl Fn(SolverError) -> CaseError + '_ {
-    move |e| CaseError::Solver(format!("{}: {e}", scene.origin))
+fn solver_err(scene: &LoadedScene) -> impl Fn(SolverError) -> SceneError + '_ {
+    move |e| SceneError::Solver(format!("{}: {e}", scene.origin))
 }
 
 fn v2(p: [f64; 2]) -> Vec2 {
@@ -192,7 +229,7 @@ pub fn build_model<E: Energy>(
     scene: &LoadedScene,
     mesh: Mesh,
     energy: E,
-) -> Result<Model<E>, CaseError> {
+) -> Result<Model<E>, SceneError> {
     let mut model = build_unloaded_model(scene, mesh, energy)?;
     add_loads(scene, &mut model)?;
     Ok(model)
@@ -204,7 +241,7 @@ fn build_unloaded_model<E: Energy>(
     scene: &LoadedScene,
     mesh: Mesh,
     energy: E,
-) -> Result<Model<E>, CaseError> {
+) -> Result<Model<E>, SceneError> {
     let s = &scene.scene;
     let err = solver_err(scene);
     let mut model = match (s.material.total_mass, s.material.density) {
@@ -229,6 +266,9 @@ fn build_unloaded_model<E: Energy>(
         model.pin(&region).map_err(&err)?;
     }
     let end_of_run = s.solver.dt * s.solver.steps as f64;
+    // A load-stepping solver moves prescribed vertices by their whole schedule in proportion
+    // to the load: the schedule is cut at the end of the run, as a dynamic run would see it.
+    let cut_at_end = s.solver.kind.capabilities().clock == Clock::LoadFactor;
     for (i, p) in s.prescribed.iter().enumerate() {
         let region = Region::in_box(v2(p.min), v2(p.max));
         if region
@@ -247,7 +287,11 @@ fn build_unloaded_model<E: Energy>(
                 region,
                 velocity: v2(p.velocity),
                 start: p.start,
-                end: p.end.unwrap_or(end_of_run.max(p.start)),
+                end: match p.end {
+                    Some(end) if cut_at_end => end.min(end_of_run).max(p.start),
+                    Some(end) => end,
+                    None => end_of_run.max(p.start),
+                },
             })
             .map_err(&err)?;
     }
@@ -294,7 +338,7 @@ fn build_unloaded_model<E: Energy>(
 
 /// Add the scene's loads to `model`: gravity and the `[[traction]]` entries (consistent nodal
 /// forces on the boundary edges whose two end vertices lie in each box).
-fn add_loads<E: Energy>(scene: &LoadedScene, model: &mut Model<E>) -> Result<(), CaseError> {
+fn add_loads<E: Energy>(scene: &LoadedScene, model: &mut Model<E>) -> Result<(), SceneError> {
     let s = &scene.scene;
     let err = solver_err(scene);
     model.set_gravity(v2(s.gravity)).map_err(&err)?;
@@ -314,61 +358,6 @@ fn add_loads<E: Energy>(scene: &LoadedScene, model: &mut Model<E>) -> Result<(),
         }
     }
     Ok(())
-}
-
-/// The displacement each prescribed vertex has at the end of the run (`t = dt * steps`): its
-/// schedule's velocity times the part of `[0, dt * steps]` inside its window, the later of two
-/// regions holding a vertex winning (as in the model), as `(vertex, displacement)` in vertex
-/// order. The static solver moves prescribed vertices to this displacement, in proportion to
-/// the load factor.
-pub fn prescribed_displacements(
-    scene: &LoadedScene,
-    rest: &[Vec2],
-) -> Result<Vec<(usize, Vec2)>, CaseError> {
-    let s = &scene.scene;
-    let err = solver_err(scene);
-    let end_of_run = s.solver.dt * s.solver.steps as f64;
-    let mut out = vec![None; rest.len()];
-    for (i, p) in s.prescribed.iter().enumerate() {
-        let motion = PrescribedMotion {
-            region: Region::in_box(v2(p.min), v2(p.max)),
-            velocity: v2(p.velocity),
-            start: p.start,
-            end: p.end.unwrap_or(end_of_run.max(p.start)),
-        };
-        let u = motion.mean_velocity(0.0, end_of_run) * end_of_run;
-        for v in motion
-            .region
-            .select(rest, &format!("prescribed.{i}"))
-            .map_err(&err)?
-        {
-            out[v] = Some(u);
-        }
-    }
-    Ok(out
-        .into_iter()
-        .enumerate()
-        .filter_map(|(v, u)| u.map(|u| (v, u)))
-        .collect())
-}
-
-/// The Newton settings of the scene (`solver.tolerance`, `solver.max_iterations`).
-pub fn newton_params(scene: &LoadedScene) -> NewtonParams {
-    let v = &scene.scene.solver;
-    NewtonParams {
-        tolerance: v.tolerance,
-        max_iterations: v.max_iterations,
-        ..NewtonParams::default()
-    }
-}
-
-/// The quasi-static solver's parameters (`solver.load_steps`, the Newton settings).
-pub fn static_params(scene: &LoadedScene) -> StaticParams {
-    StaticParams {
-        load_steps: scene.scene.solver.load_steps,
-        newton: newton_params(scene),
-        ..StaticParams::default()
-    }
 }
 
 /// A probe resolved to a vertex.
@@ -413,134 +402,16 @@ pub fn resolve_probes(scene: &LoadedScene, mesh: &Mesh) -> Vec<Probe> {
         .collect()
 }
 
-/// One of the available steppers, chosen by the scene.
-#[derive(Debug)]
-pub enum AnyStepper {
-    /// Explicit FEM.
-    Explicit(ExplicitStepper),
-    /// PBD.
-    Pbd(PbdStepper),
-    /// XPBD.
-    Xpbd(XpbdStepper),
-    /// Implicit Euler (boxed: its Newton workspace makes it the largest variant by far).
-    Implicit(Box<ImplicitStepper>),
-}
-
-impl AnyStepper {
-    /// The explicit stability check, when the stepper is explicit and `dt` exceeds the limit.
-    pub fn time_step_warning(&self) -> Option<String> {
-        match self {
-            AnyStepper::Explicit(s) => s.time_step_check().warning(),
-            _ => None,
-        }
-    }
-}
-
-impl Stepper for AnyStepper {
-    fn dt(&self) -> Real {
-        match self {
-            AnyStepper::Explicit(s) => s.dt(),
-            AnyStepper::Pbd(s) => s.dt(),
-            AnyStepper::Xpbd(s) => s.dt(),
-            AnyStepper::Implicit(s) => s.dt(),
-        }
-    }
-
-    fn step<E: Energy>(
-        &mut self,
-        model: &Model<E>,
-        state: &mut State,
-    ) -> Result<StepReport, SolverError> {
-        match self {
-            AnyStepper::Explicit(s) => s.step(model, state),
-            AnyStepper::Pbd(s) => s.step(model, state),
-            AnyStepper::Xpbd(s) => s.step(model, state),
-            AnyStepper::Implicit(s) => s.step(model, state),
-        }
-    }
-}
-
-/// The scene's stepper for `model`. A `static` scene has no stepper (the run loop drives the
-/// quasi-static solver with [`static_params`]): asking for one is an error.
+/// The scene's stepper for `model`: the chosen solver of the registry, built from its own
+/// parameters (validated by their own rules).
 pub fn build_stepper<E: Energy>(
     scene: &LoadedScene,
     model: &Model<E>,
-) -> Result<AnyStepper, CaseError> {
-    let v = &scene.scene.solver;
-    let err = solver_err(scene);
-    let ordering = match v.ordering {
-        OrderingName::GaussSeidel => Ordering::GaussSeidel,
-        OrderingName::Coloured => Ordering::Coloured,
-        OrderingName::Jacobi => Ordering::Jacobi {
-            relaxation: v.relaxation,
-        },
-    };
-    Ok(match v.kind {
-        SolverKind::Explicit => AnyStepper::Explicit(
-            ExplicitStepper::new(
-                model,
-                ExplicitParams {
-                    dt: v.dt,
-                    damping: v.damping,
-                    scheme: match v.scheme {
-                        SchemeName::Symplectic => ExplicitScheme::SymplecticEuler,
-                        SchemeName::ForwardEuler => ExplicitScheme::ForwardEuler,
-                    },
-                },
-            )
-            .map_err(&err)?,
-        ),
-        SolverKind::Pbd => AnyStepper::Pbd(
-            PbdStepper::new(
-                model,
-                PbdParams {
-                    dt: v.dt,
-                    substeps: v.substeps,
-                    iterations: v.iterations,
-                    stiffness: v.stiffness,
-                    damping: v.damping,
-                    ordering,
-                    ..PbdParams::default()
-                },
-            )
-            .map_err(&err)?,
-        ),
-        SolverKind::Xpbd => AnyStepper::Xpbd(
-            XpbdStepper::new(
-                model,
-                XpbdParams {
-                    dt: v.dt,
-                    substeps: v.substeps,
-                    iterations: v.iterations,
-                    compliance: v.compliance,
-                    form: match v.xpbd_form {
-                        XpbdFormName::Consistent => XpbdForm::Consistent,
-                        XpbdFormName::Literal => XpbdForm::Literal,
-                    },
-                    damping: v.damping,
-                    ordering,
-                    ..XpbdParams::default()
-                },
-            )
-            .map_err(&err)?,
-        ),
-        SolverKind::Implicit => AnyStepper::Implicit(Box::new(
-            ImplicitStepper::new(
-                model,
-                ImplicitParams {
-                    dt: v.dt,
-                    damping: v.damping,
-                    newton: newton_params(scene),
-                },
-            )
-            .map_err(&err)?,
-        )),
-        SolverKind::Static => {
-            return Err(scene.error(
-                "solver.kind",
-                v.kind,
-                "has no time stepper: a static scene is run by `run_scene`, which drives the quasi-static solver",
-            ));
-        }
-    })
+) -> Result<AnyStepper, SceneError> {
+    scene
+        .scene
+        .solver
+        .params()
+        .build(model)
+        .map_err(solver_err(scene))
 }

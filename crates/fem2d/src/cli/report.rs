@@ -56,6 +56,7 @@ pub fn run_report(args: &ReportArgs) -> Result<(), String> {
         stability: !args.no_stability,
         animations: !args.no_animations,
         command,
+        date: humantime::format_rfc3339_seconds(std::time::SystemTime::now()).to_string(),
     };
     let summary = write_report(&args.out, &options, |what| eprintln!("report: {what}..."))
         .map_err(|e| e.to_string())?;

@@ -5,11 +5,13 @@
 use std::path::PathBuf;
 
 use clap::Args;
-use fem_cases::cases::load_case_or_file;
+use fem_cases::files::load_case_or_file;
 use fem_cases::pictures::{
     FieldKind, FramePicture, GifOptions, shared_range, style, time_label, write_gif,
 };
-use fem_cases::run::{RunOptions, run_scene};
+use fem_cases::run::{RunOptions, run_scene_with};
+use fem_scene::run::Progress;
+use fem_solvers::Clock;
 
 /// Options shared by every command that loads a scene.
 #[derive(Debug, Args, Clone)]
@@ -32,7 +34,8 @@ pub struct RunArgs {
     #[arg(long)]
     pub energy: Option<String>,
     /// Solver: explicit, pbd, xpbd, implicit, static (default: the scene's). `static` solves for
-    /// equilibrium in `solver.load_steps` load increments (dt and steps do not apply).
+    /// equilibrium in `solver.load_steps` load increments (dt and steps do not apply); see
+    /// docs/solvers.md.
     #[arg(long)]
     pub solver: Option<String>,
     /// Time step, s (default: the scene's). A negative value is read as a number, so that
@@ -126,11 +129,11 @@ pub fn run(args: &RunArgs) -> Result<(), String> {
     }
     let scene = load_case_or_file(&args.scene.scene, &overrides).map_err(|e| e.to_string())?;
     let s = &scene.scene;
-    // Frames recorded by the run: the first, one every `frame_every` steps, and the last.
-    let recorded = if s.solver.kind == fem_cases::scene::SolverKind::Static {
-        s.solver.load_steps as u64 + 1
-    } else {
-        s.solver.steps / s.output.frame_every.max(1) + 2
+    // Frames recorded by the run: the first, one every `frame_every` steps (every increment
+    // when load stepping), and the last.
+    let recorded = match s.solver.kind.capabilities().clock {
+        Clock::LoadFactor => s.solver.planned_steps() + 1,
+        Clock::Time => s.solver.steps / s.output.frame_every.max(1) + 2,
     };
     let gif_every = args
         .gif_every
@@ -142,15 +145,16 @@ pub fn run(args: &RunArgs) -> Result<(), String> {
     } else {
         None
     };
-    let result = run_scene(
+    let mut bar = ProgressBar::default();
+    let result = run_scene_with(
         &scene,
         &RunOptions {
             out_dir: Some(args.out.clone()),
             threads: args.threads,
-            progress: !args.quiet,
             snapshot_every,
             vtk: args.vtk,
         },
+        if args.quiet { None } else { Some(&mut bar) },
     )
     .map_err(|e| e.to_string())?;
     let mut pictures = Vec::new();
@@ -199,10 +203,11 @@ pub fn run(args: &RunArgs) -> Result<(), String> {
     if let Some(w) = &s.time_step_warning {
         eprintln!("warning: {w}");
     }
-    if s.solver == "static" {
+    let caps = s.solver.capabilities();
+    if caps.clock == Clock::LoadFactor {
         println!(
-            "{}: {} / static, {} triangles, {} load increments in {:.3} s",
-            s.scene, s.energy, s.triangles, s.steps_completed, s.step_seconds,
+            "{}: {} / {}, {} triangles, {} load increments in {:.3} s",
+            s.scene, s.energy, s.solver, s.triangles, s.steps_completed, s.step_seconds,
         );
     } else {
         println!(
@@ -218,7 +223,7 @@ pub fn run(args: &RunArgs) -> Result<(), String> {
             s.real_time_factor
         );
     }
-    if s.solver == "static" || s.solver == "implicit" {
+    if caps.implicit {
         println!(
             "Newton: {} iterations, final residual {}",
             s.newton_iterations,
@@ -276,5 +281,40 @@ fn fixed(x: f64, digits: usize) -> String {
         format!("{x:.digits$}")
     } else {
         format!("{x:.digits$e}")
+    }
+}
+
+/// A progress bar on standard error (indicatif draws nothing when it is not a terminal), for
+/// runs of 1000 steps or more.
+#[derive(Default)]
+struct ProgressBar(Option<indicatif::ProgressBar>);
+
+impl Progress for ProgressBar {
+    fn start(&mut self, total: u64) {
+        if total < 1000 {
+            return;
+        }
+        let bar = indicatif::ProgressBar::with_draw_target(
+            Some(total),
+            indicatif::ProgressDrawTarget::stderr(),
+        );
+        if let Ok(style) = indicatif::ProgressStyle::with_template(
+            "{elapsed_precise} [{bar:40}] {pos}/{len} steps ({per_sec}, eta {eta})",
+        ) {
+            bar.set_style(style.progress_chars("=> "));
+        }
+        self.0 = Some(bar);
+    }
+
+    fn advance(&mut self, done: u64) {
+        if let Some(b) = &self.0 {
+            b.set_position(done);
+        }
+    }
+
+    fn finish(&mut self) {
+        if let Some(b) = self.0.take() {
+            b.finish_and_clear();
+        }
     }
 }

@@ -3,9 +3,7 @@
 //! run, every built-in case, the energy / solver / thread / `--set` flags, bad input ending with
 //! one `error:` line and no output file, and a run that blows up.
 
-mod common;
-
-use common::{arg, fem2d, json, read, run_ok, scratch};
+use crate::common::{arg, fem2d, json, read, run_ok, scratch};
 use std::path::Path;
 
 use serde_json::Value;
@@ -232,7 +230,7 @@ fn cases_b_c_d_run_a_few_steps() {
         assert_eq!(s["blew_up"], false);
         let (header, data) = csv(&out_dir.join("probes.csv"));
         let mut expected = vec!["step".to_owned(), "time".to_owned()];
-        for p in &fem_cases::cases::load_case(case, &[]).unwrap().scene.probes {
+        for p in &fem_scene::cases::load_case(case, &[]).unwrap().scene.probes {
             expected.push(format!("{}.ux", p.name));
             expected.push(format!("{}.uy", p.name));
         }
@@ -440,7 +438,7 @@ fn bad_input_is_one_error_line_and_no_output() {
     let typo = dir.join("typo.toml");
     std::fs::write(
         &typo,
-        fem_cases::cases::case_text("case-a")
+        fem_scene::cases::case_text("case-a")
             .unwrap()
             .replace("youngs_modulus", "youngs_modulos"),
     )
@@ -448,7 +446,7 @@ fn bad_input_is_one_error_line_and_no_output() {
     let no_mesh = dir.join("no-mesh.toml");
     std::fs::write(
         &no_mesh,
-        fem_cases::cases::case_text("case-a").unwrap().replace(
+        fem_scene::cases::case_text("case-a").unwrap().replace(
             "kind = \"rectangle\"\nwidth = 5.0\nheight = 1.0\nnx = 20\nny = 4\ndiagonal = \"left\"\n",
             "kind = \"file\"\npath = \"absent.json\"\n",
         ),

@@ -2,9 +2,7 @@
 //! reader), Gmsh and VTK files and four stage previews; bad input ends with a one-line error and
 //! a non-zero exit code, and leaves no output file behind.
 
-mod common;
-
-use common::{arg, fem2d, scratch};
+use crate::common::{arg, fem2d, scratch};
 
 #[test]
 fn builtin_body_to_mesh_files_and_previews() {

@@ -2,9 +2,9 @@
 //! on the real MakeHuman body in `../shared/fixtures/human/`). Each test fails if the claim
 //! stops holding; the margins are stated beside each assertion.
 
-use fem_cases::cases::load_case;
 use fem_cases::run::{RunOptions, RunResult, run_scene};
 use fem_cases::table1::{ENERGIES, FRAMES, PAPER_MM, ordering_holds, table1, tip_mm};
+use fem_scene::cases::load_case;
 
 fn run(case: &str, overrides: &[&str]) -> RunResult {
     let o: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();

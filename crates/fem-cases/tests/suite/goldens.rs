@@ -10,8 +10,8 @@
 
 use std::path::PathBuf;
 
-use fem_cases::cases::load_case;
 use fem_cases::run::{RunOptions, run_scene};
+use fem_scene::cases::load_case;
 use serde_json::Value;
 
 fn golden(case: &str) -> Value {
@@ -35,7 +35,6 @@ fn current(case: &str) -> Value {
         &RunOptions {
             out_dir: None,
             threads: Some(1),
-            progress: false,
             ..RunOptions::default()
         },
     )

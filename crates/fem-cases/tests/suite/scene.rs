@@ -4,12 +4,27 @@
 
 use std::path::{Path, PathBuf};
 
-use fem_cases::cases::{CASES, load_case};
+use fem_cases::files::load_scene_file;
 use fem_cases::run::{RunOptions, run_scene};
-use fem_cases::scene::{
-    LoadedScene, MeshKind, MotionName, SolverKind, apply_override, load_scene_file, parse_scene,
-};
 use fem_core::energy::EnergyKind;
+use fem_scene::cases::{CASES, load_case};
+use fem_scene::scene::{LoadedScene, MeshKind, MotionName, apply_override, parse_scene};
+use fem_solvers::SolverKind;
+
+/// Parameter `key` of the scene's chosen solver, as TOML.
+fn param(s: &fem_scene::scene::Scene, key: &str) -> toml::Value {
+    s.solver
+        .get(key)
+        .unwrap_or_else(|| panic!("{} has no parameter {key}", s.solver.kind))
+}
+
+/// Parameter `key` of solver `kind` in the scene, as TOML.
+fn param_of(s: &fem_scene::scene::Scene, kind: SolverKind, key: &str) -> toml::Value {
+    let mut spec = s.solver.clone();
+    spec.kind = kind;
+    spec.get(key)
+        .unwrap_or_else(|| panic!("{kind} has no parameter {key}"))
+}
 
 fn case_a(overrides: &[&str]) -> Result<LoadedScene, String> {
     let o: Vec<String> = overrides.iter().map(|s| (*s).to_owned()).collect();
@@ -72,7 +87,6 @@ fn every_builtin_case_parses_and_matches_its_fixture_file() {
         let from_file = load_scene_file(&file, &[]).unwrap_or_else(|e| panic!("{name}: {e}"));
         assert_eq!(from_file.scene, builtin.scene, "{name}");
         assert_eq!(from_file.base_dir, fixtures());
-        assert!(SolverKind::AVAILABLE.contains(&builtin.scene.solver.kind));
         assert!(!builtin.scene.probes.is_empty(), "{name} has no probe");
     }
 }
@@ -92,7 +106,7 @@ fn builtin_cases_say_what_the_paper_says() {
 
     let d = load_case("case-d", &[]).unwrap().scene;
     assert_eq!(d.mesh.kind, Some(MeshKind::Body));
-    assert_eq!(d.energy.0, EnergyKind::NeoHookean);
+    assert_eq!(d.energy, EnergyKind::NeoHookean);
     assert_eq!(d.material.youngs_modulus, 1.85e6);
     assert_eq!(d.material.total_mass, Some(70.0));
     assert_eq!(d.solver.dt, 1e-4);
@@ -134,15 +148,23 @@ steps = 5
     let s = parse_scene(text, "minimal.toml", Path::new("."), &[])
         .unwrap()
         .scene;
-    assert_eq!(s.energy.0, EnergyKind::NeoHookean);
+    assert_eq!(s.energy, EnergyKind::NeoHookean);
     assert_eq!(s.solver.kind, SolverKind::Explicit);
     assert_eq!(s.gravity, [0.0, -9.8]);
-    assert_eq!(s.solver.damping, 0.0);
-    assert_eq!((s.solver.iterations, s.solver.substeps), (10, 1));
-    assert_eq!((s.solver.stiffness, s.solver.compliance), (1.0, 1.0));
-    assert_eq!(s.solver.relaxation, 1.0);
-    assert_eq!(s.solver.tolerance, 1e-8);
-    assert_eq!((s.solver.max_iterations, s.solver.load_steps), (50, 1));
+    assert_eq!(param(&s, "damping").as_float(), Some(0.0));
+    let (pbd, xpbd) = (SolverKind::Pbd, SolverKind::Xpbd);
+    assert_eq!(param_of(&s, pbd, "iterations").as_integer(), Some(10));
+    assert_eq!(param_of(&s, pbd, "substeps").as_integer(), Some(1));
+    assert_eq!(param_of(&s, pbd, "stiffness").as_float(), Some(1.0));
+    assert_eq!(param_of(&s, xpbd, "compliance").as_float(), Some(1.0));
+    assert_eq!(param_of(&s, xpbd, "relaxation").as_float(), Some(1.0));
+    let (implicit, statics) = (SolverKind::Implicit, SolverKind::Static);
+    assert_eq!(param_of(&s, implicit, "tolerance").as_float(), Some(1e-8));
+    assert_eq!(
+        param_of(&s, implicit, "max_iterations").as_integer(),
+        Some(50)
+    );
+    assert_eq!(param_of(&s, statics, "load_steps").as_integer(), Some(1));
     assert!(s.traction.is_empty());
     assert_eq!(s.output.frame_every, 10);
     assert!(s.output.frames);
@@ -179,9 +201,9 @@ fn overrides_set_nested_values_array_elements_and_bare_strings() {
     );
     assert_eq!(s.probes[0].point, [5.0, 1.0]);
     assert_eq!(s.probes[0].name, "tip");
-    assert_eq!(s.energy.0, EnergyKind::Corotational);
+    assert_eq!(s.energy, EnergyKind::Corotational);
     assert_eq!(s.solver.kind, SolverKind::Xpbd);
-    assert_eq!(s.material.plane, fem_cases::scene::PlaneName::PlaneStress);
+    assert_eq!(s.material.plane, fem_core::PlaneModel::PlaneStress);
     // Untouched values stay.
     assert_eq!(s.material.poisson_ratio, 0.3);
     assert_eq!(s.solver.steps, 2000);
@@ -192,9 +214,9 @@ fn bare_and_quoted_strings_are_the_same() {
     let bare = case_a(&["energy=stvk"]).unwrap().scene;
     let quoted = case_a(&["energy=\"stvk\""]).unwrap().scene;
     assert_eq!(bare, quoted);
-    assert_eq!(bare.energy.0, EnergyKind::Stvk);
+    assert_eq!(bare.energy, EnergyKind::Stvk);
     let d = load_case("case-d", &["energy=stvk".into()]).unwrap().scene;
-    assert_eq!(d.energy.0, EnergyKind::Stvk);
+    assert_eq!(d.energy, EnergyKind::Stvk);
 }
 
 #[test]
@@ -286,7 +308,7 @@ fn toml_syntax_error_gives_line_and_column() {
 fn unknown_field_is_an_error() {
     let e = case_a_err(&["material.youngs_modulos=1000"]);
     assert_mentions(&e, &["material", "youngs_modulos", "unknown field"]);
-    let text = fem_cases::cases::case_text("case-a")
+    let text = fem_scene::cases::case_text("case-a")
         .unwrap()
         .replace("youngs_modulus", "youngs_modulos");
     let e = parse_scene(&text, "typo.toml", Path::new("."), &[])
@@ -366,14 +388,14 @@ fn total_mass_and_density_exclude_each_other() {
     let e = case_a_err(&["material.density=1000"]);
     assert_mentions(&e, &["material.density = 1000", "not both"]);
     // Density alone is fine.
-    let text = fem_cases::cases::case_text("case-a")
+    let text = fem_scene::cases::case_text("case-a")
         .unwrap()
         .replace("total_mass = 1.0", "density = 0.2");
     let s = parse_scene(&text, "density.toml", Path::new("."), &[]).unwrap();
     assert_eq!(s.scene.material.density, Some(0.2));
     assert_eq!(s.scene.material.total_mass, None);
     // Neither is an error too.
-    let text = fem_cases::cases::case_text("case-a")
+    let text = fem_scene::cases::case_text("case-a")
         .unwrap()
         .replace("total_mass = 1.0", "");
     let e = parse_scene(&text, "nomass.toml", Path::new("."), &[])
@@ -487,17 +509,21 @@ fn unknown_energy_and_solver_names() {
             case_a(&[&format!("energy={}", name.name())])
                 .unwrap()
                 .scene
-                .energy
-                .0,
+                .energy,
             name
         );
     }
 }
 
 #[test]
-fn every_solver_is_available_and_newton_solvers_refuse_contact() {
-    assert_eq!(SolverKind::AVAILABLE, SolverKind::ALL);
-    for name in ["implicit", "static"] {
+fn solvers_without_contact_refuse_scenes_with_contact() {
+    let without: Vec<&str> = SolverKind::ALL
+        .iter()
+        .filter(|k| !k.capabilities().contact)
+        .map(|k| k.name())
+        .collect();
+    assert!(!without.is_empty());
+    for name in without {
         let s = case_a(&[&format!("solver.kind={name}")]).unwrap().scene;
         assert_eq!(s.solver.kind.name(), name);
         // Case D has a ground and an obstacle; case A with a ground is refused too.

@@ -1,0 +1,6 @@
+//! Library tests of fem-cases, in one test binary: the claims of the paper's Section 4 on the
+//! built-in cases, and the golden summaries.
+
+mod cases;
+mod goldens;
+mod scene;

@@ -1,0 +1,702 @@
+//! Running a scene: the step loop, the per-frame numbers (stress, peaks, probes, runaway
+//! check), blow-up detection and the [`Summary`].
+//!
+//! One loop for every solver of the registry. A solver whose clock is time
+//! ([`fem_solvers::Clock::Time`]) takes `solver.steps` steps and a frame is recorded every
+//! `output.frame_every` steps (and at step 0 and the last step); a load-stepping solver
+//! ([`fem_solvers::Clock::LoadFactor`], the quasi-static solver) raises the load factor from 0
+//! to 1 (gravity, tractions and prescribed displacements together), one increment per step, and
+//! every converged increment is a frame, numbered by the increments converged so far, with the
+//! load factor as its `time`.
+//!
+//! A run *blows up* when a step fails (a non-finite value, which the solver refuses to write; a
+//! Newton solve that does not converge) or a displacement exceeds a thousand times the body's
+//! size. The result then describes the run up to that point and the summary says
+//! `"blew_up": true`; [`run`] returns it (callers that treat a blow-up as an error check
+//! [`Summary::blew_up`]).
+//!
+//! What the caller supplies ([`RunEnv`]): a [`Clock`] for the timings (none: they read 0), a
+//! [`Progress`] report, [`FrameSink`]s that receive each recorded [`Frame`] (files, VTK, a
+//! canvas), a [`MeshSource`] for mesh and model files, and how many frames to keep in memory.
+//! This module reads no clock and touches no file.
+
+use fem_core::PlaneModel;
+use fem_core::dispatch_energy;
+use fem_core::energy::{Energy, EnergyKind};
+use fem_core::math::{Real, Vec2};
+use fem_core::mesh::Mesh;
+use fem_core::stress::{ElementStress, VonMisesFormula, populate_element_stress, vertex_average};
+use fem_solvers::{
+    AnyStepper, Clock as SolverClock, Model, SolverError, SolverKind, State, Stepper,
+};
+use serde::{Deserialize, Serialize};
+
+use crate::build::{
+    MeshSource, NoFiles, Probe, build_mesh, build_model, build_stepper, energy, resolve_probes,
+    von_mises_formula,
+};
+use crate::error::SceneError;
+use crate::scene::LoadedScene;
+
+/// A monotonic clock, read for the run's timings.
+pub trait Clock {
+    /// Seconds since an arbitrary fixed origin.
+    fn seconds(&self) -> f64;
+}
+
+/// No clock: every timing reads 0 (and rates derived from them 0).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct NoClock;
+
+impl Clock for NoClock {
+    fn seconds(&self) -> f64 {
+        0.0
+    }
+}
+
+/// Progress of a run, for a progress bar or a status line. Every method defaults to nothing.
+pub trait Progress {
+    /// The run starts; `total` steps are planned (the nominal increments for load stepping).
+    fn start(&mut self, _total: u64) {}
+    /// `done` steps are complete.
+    fn advance(&mut self, _done: u64) {}
+    /// The run ended (finished or blew up).
+    fn finish(&mut self) {}
+}
+
+/// One recorded frame, borrowed: what a [`FrameSink`] receives.
+#[derive(Clone, Copy, Debug)]
+pub struct Frame<'a> {
+    /// Step number (load increment for a load-stepping run).
+    pub step: u64,
+    /// Time, s (the load factor for a load-stepping run).
+    pub time: f64,
+    /// The rest mesh (rest positions and triangles).
+    pub mesh: &'a Mesh,
+    /// Vertex positions, m.
+    pub positions: &'a [Vec2],
+    /// Vertex velocities, m/s.
+    pub velocities: &'a [Vec2],
+    /// Per-element stress (Cauchy, von Mises, det F, ...).
+    pub stress: &'a [ElementStress],
+    /// Per-element von Mises stress, Pa (NaN where undefined, e.g. inverted elements).
+    pub von_mises: &'a [f64],
+    /// Obstacle polygons at this frame, m.
+    pub obstacles: &'a [Vec<Vec2>],
+}
+
+/// Receives every recorded frame of a run, in order (a file writer, a VTK writer, a canvas).
+pub trait FrameSink {
+    /// Take frame `frame`; an error ends the run with it.
+    fn frame(&mut self, frame: &Frame<'_>) -> Result<(), SceneError>;
+}
+
+/// What the caller supplies to [`run`]. `RunEnv::default()`: no clock, no progress, no sink,
+/// no files, no frame kept in memory.
+pub struct RunEnv<'a> {
+    /// Read for the timings in the summary.
+    pub clock: &'a dyn Clock,
+    /// Mesh and model files the scene names.
+    pub files: &'a dyn MeshSource,
+    /// Told about the steps as they complete.
+    pub progress: Option<&'a mut dyn Progress>,
+    /// Given every recorded frame.
+    pub sinks: Vec<&'a mut dyn FrameSink>,
+    /// Keep every `n`-th recorded frame in memory as a [`Snapshot`] (for pictures and
+    /// animations), and always the last one. `None`: keep none.
+    pub snapshot_every: Option<usize>,
+}
+
+impl Default for RunEnv<'_> {
+    fn default() -> Self {
+        RunEnv {
+            clock: &NoClock,
+            files: &NoFiles,
+            progress: None,
+            sinks: Vec::new(),
+            snapshot_every: None,
+        }
+    }
+}
+
+/// JSON has no NaN or infinity: `serde_json` writes them as `null`; these read `null` back as
+/// NaN, so a summary of a run that blew up round-trips.
+mod nullable {
+    use serde::{Deserialize, Deserializer};
+
+    pub fn f64<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+        Ok(Option::<f64>::deserialize(d)?.unwrap_or(f64::NAN))
+    }
+
+    pub fn pair<'de, D: Deserializer<'de>>(d: D) -> Result<[f64; 2], D::Error> {
+        let [a, b] = <[Option<f64>; 2]>::deserialize(d)?;
+        Ok([a.unwrap_or(f64::NAN), b.unwrap_or(f64::NAN)])
+    }
+}
+
+/// One recorded frame kept in memory (see [`RunEnv::snapshot_every`]).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Snapshot {
+    /// Step number (load increment for a load-stepping run).
+    pub step: u64,
+    /// Time, s (load factor for a load-stepping run).
+    pub time: f64,
+    /// Vertex positions, m.
+    pub positions: Vec<[f64; 2]>,
+    /// Vertex velocities, m/s (zero for a load-stepping run).
+    pub velocities: Vec<[f64; 2]>,
+    /// Per-element von Mises stress, Pa (NaN where undefined, e.g. inverted elements).
+    pub von_mises: Vec<f64>,
+    /// Per-element det F.
+    pub det_f: Vec<f64>,
+    /// Obstacle polygons, m.
+    pub obstacles: Vec<Vec<[f64; 2]>>,
+}
+
+/// Probe statistics in the summary.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ProbeSummary {
+    /// Probe name.
+    pub name: String,
+    /// The tracked vertex.
+    pub vertex: usize,
+    /// Its rest position, m.
+    pub rest: [f64; 2],
+    /// Displacement at the last recorded frame, m.
+    #[serde(deserialize_with = "nullable::pair")]
+    pub final_displacement: [f64; 2],
+    /// Smallest and largest vertical displacement over the recorded frames, m.
+    #[serde(deserialize_with = "nullable::pair")]
+    pub uy_range: [f64; 2],
+}
+
+/// `summary.json`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Summary {
+    /// Scene name.
+    pub scene: String,
+    /// The energy (its name in JSON).
+    pub energy: EnergyKind,
+    /// The solver (its name in JSON).
+    pub solver: SolverKind,
+    /// `plane-strain` or `plane-stress`.
+    pub plane: PlaneModel,
+    /// The von Mises formula used.
+    pub von_mises_formula: String,
+    /// Time step, s (as given in the scene; a load-stepping run does not use it).
+    pub dt: f64,
+    /// Steps requested (load stepping: the nominal load increments, `solver.load_steps`).
+    pub steps: u64,
+    /// Steps completed, less than `steps` after a blow-up (load stepping: increments
+    /// converged, halved ones counted, so it can exceed `steps`).
+    pub steps_completed: u64,
+    /// Simulated time reached, s (0 for a load-stepping run).
+    pub simulated_seconds: f64,
+    /// Vertex count.
+    pub vertices: usize,
+    /// Triangle count.
+    pub triangles: usize,
+    /// Rayon threads used.
+    pub threads: usize,
+    /// Wall time of the whole run (mesh building excluded), s, by the caller's [`Clock`] (0
+    /// without one).
+    pub wall_seconds: f64,
+    /// Wall time of the steps alone (no recording), s (0 without a clock).
+    pub step_seconds: f64,
+    /// Triangles x steps completed / step_seconds (0 without a clock).
+    #[serde(deserialize_with = "nullable::f64")]
+    pub element_steps_per_second: f64,
+    /// Simulated seconds per wall second of stepping (0 for a load-stepping run).
+    #[serde(deserialize_with = "nullable::f64")]
+    pub real_time_factor: f64,
+    /// Largest per-element von Mises stress over the recorded frames, Pa.
+    #[serde(deserialize_with = "nullable::f64")]
+    pub max_von_mises: f64,
+    /// The step of that frame.
+    pub max_von_mises_step: u64,
+    /// The element and its centroid in the deformed configuration of that frame, m.
+    pub max_von_mises_element: usize,
+    /// Centroid of that element at that frame, m.
+    #[serde(deserialize_with = "nullable::pair")]
+    pub max_von_mises_at: [f64; 2],
+    /// Largest per-element von Mises stress at the last recorded frame, Pa.
+    #[serde(deserialize_with = "nullable::f64")]
+    pub final_max_von_mises: f64,
+    /// Largest vertex-averaged von Mises stress at the last recorded frame, Pa.
+    #[serde(deserialize_with = "nullable::f64")]
+    pub final_max_vertex_von_mises: f64,
+    /// Smallest det F over every step.
+    #[serde(deserialize_with = "nullable::f64")]
+    pub min_det_f: f64,
+    /// Most inverted elements in any step.
+    pub inverted_elements: usize,
+    /// Whether the run blew up.
+    pub blew_up: bool,
+    /// What happened, when it blew up.
+    pub blow_up_message: Option<String>,
+    /// The explicit stability warning, when dt exceeds the estimated limit.
+    pub time_step_warning: Option<String>,
+    /// Largest displacement magnitude at the last recorded frame, m.
+    #[serde(deserialize_with = "nullable::f64")]
+    pub final_max_displacement: f64,
+    /// Probes.
+    pub probes: Vec<ProbeSummary>,
+    /// Newton iterations over the whole run, failed solves included (solvers implicit in time;
+    /// 0 for the others).
+    #[serde(default)]
+    pub newton_iterations: u64,
+    /// Residual (norm of the force imbalance on the free vertices) at the end of the last
+    /// Newton solve that converged, N (the last step or load increment); `null` for solvers
+    /// explicit in time or when no solve converged.
+    #[serde(default)]
+    pub final_residual: Option<f64>,
+    /// Framework version.
+    pub version: String,
+}
+
+/// Everything a run produced, in memory.
+#[derive(Clone, Debug)]
+pub struct RunResult {
+    /// The summary.
+    pub summary: Summary,
+    /// Resolved probes.
+    pub probes: Vec<Probe>,
+    /// Recorded frames: `(step, time)`.
+    pub frame_times: Vec<(u64, f64)>,
+    /// Per probe, per frame: displacement `[ux, uy]`, m.
+    pub probe_series: Vec<Vec<[f64; 2]>>,
+    /// Rest positions, m.
+    pub rest: Vec<[f64; 2]>,
+    /// Triangles.
+    pub triangles: Vec<[u32; 3]>,
+    /// Positions at the last recorded frame, m.
+    pub final_positions: Vec<[f64; 2]>,
+    /// Per-element von Mises at the last recorded frame, Pa.
+    pub final_von_mises: Vec<f64>,
+    /// Vertex-averaged von Mises at the last recorded frame, Pa.
+    pub final_vertex_von_mises: Vec<f64>,
+    /// Obstacle polygons at the last recorded frame, m.
+    pub final_obstacles: Vec<Vec<[f64; 2]>>,
+    /// Frames kept in memory ([`RunEnv::snapshot_every`]), in time order; the last one is the
+    /// last recorded frame.
+    pub snapshots: Vec<Snapshot>,
+}
+
+impl RunResult {
+    /// The series of probe `name`, if it exists.
+    pub fn probe(&self, name: &str) -> Option<&[[f64; 2]]> {
+        self.probes
+            .iter()
+            .position(|p| p.name == name)
+            .map(|i| self.probe_series[i].as_slice())
+    }
+}
+
+/// Run a scene on the current rayon thread pool. Errors: building the mesh, the model or the
+/// stepper, or a sink's error. A blow-up is not an error here: it is reported in the summary.
+pub fn run(scene: &LoadedScene, env: &mut RunEnv<'_>) -> Result<RunResult, SceneError> {
+    let mesh = build_mesh(scene, env.files)?;
+    let energy = energy(scene)?;
+    dispatch_energy!(energy, e => run_with(scene, env, mesh, e))
+}
+
+/// The per-frame numbers of a run: stress of the current frame, the peaks, the probe series,
+/// the runaway check and the snapshots kept in memory. Buffers are sized on the first frame.
+struct Recorder {
+    formula: VonMisesFormula,
+    stress: Vec<ElementStress>,
+    von_mises: Vec<f64>,
+    obstacles: Vec<Vec<Vec2>>,
+    frame_times: Vec<(u64, f64)>,
+    probe_series: Vec<Vec<[f64; 2]>>,
+    /// Peak von Mises so far: value, step, element, deformed centroid.
+    max_vm: (f64, u64, usize, [f64; 2]),
+    body_size: f64,
+    runaway: Option<String>,
+    /// Snapshot cadence (in recorded frames) and the frames kept so far.
+    snapshot_every: Option<usize>,
+    snapshots: Vec<Snapshot>,
+    /// The latest recorded frame when it is not in `snapshots` (kept so the last frame is).
+    latest: Option<Snapshot>,
+}
+
+impl Recorder {
+    /// Record a frame of `state`, numbered by the state's step and time, and hand it to the
+    /// sinks.
+    fn record<E: Energy>(
+        &mut self,
+        model: &Model<E>,
+        state: &State,
+        probes: &[Probe],
+        sinks: &mut [&mut dyn FrameSink],
+    ) -> Result<(), SceneError> {
+        let (step, time) = (state.step, state.t);
+        let mesh = model.mesh();
+        populate_element_stress(
+            mesh,
+            model.energy(),
+            &state.x,
+            self.formula,
+            &mut self.stress,
+        );
+        self.von_mises.clear();
+        self.von_mises
+            .extend(self.stress.iter().map(|s| s.von_mises));
+        if let Some((t, vm)) = self
+            .von_mises
+            .iter()
+            .enumerate()
+            .filter(|(_, v)| v.is_finite())
+            .max_by(|a, b| a.1.total_cmp(b.1))
+        {
+            if *vm > self.max_vm.0 {
+                let [a, b, c] = mesh.gather(t, &state.x);
+                let centroid = (a + b + c) / 3.0;
+                self.max_vm = (*vm, step, t, [centroid.x, centroid.y]);
+            }
+        }
+        self.frame_times.push((step, time));
+        for (series, p) in self.probe_series.iter_mut().zip(probes) {
+            let u = state.displacement(model, p.vertex);
+            series.push([u.x, u.y]);
+        }
+        if self.runaway.is_none() {
+            let limit = 1e3 * self.body_size;
+            if let Some((i, u)) = state
+                .x
+                .iter()
+                .zip(mesh.vertices())
+                .map(|(x, x0)| (x - x0).norm())
+                .enumerate()
+                .find(|(_, u)| *u > limit)
+            {
+                self.runaway = Some(format!(
+                    "vertex {i} moved {u:.3e} m at step {step} (t = {time:.6} s), more than 1000 times the body size"
+                ));
+            }
+        }
+        self.obstacles
+            .resize_with(model.obstacles().len(), Vec::new);
+        for ((poly, o), b) in self
+            .obstacles
+            .iter_mut()
+            .zip(model.obstacles())
+            .zip(&state.bodies)
+        {
+            poly.clear();
+            poly.extend(o.world_polygon(b));
+        }
+        let frame = Frame {
+            step,
+            time,
+            mesh,
+            positions: &state.x,
+            velocities: &state.v,
+            stress: &self.stress,
+            von_mises: &self.von_mises,
+            obstacles: &self.obstacles,
+        };
+        for sink in sinks.iter_mut() {
+            sink.frame(&frame)?;
+        }
+        if let Some(every) = self.snapshot_every {
+            let keep = (self.frame_times.len() - 1) % every.max(1) == 0;
+            let mut snap = self.latest.take().unwrap_or_default();
+            snap.step = step;
+            snap.time = time;
+            snap.positions.clear();
+            snap.positions.extend(state.x.iter().map(|p| [p.x, p.y]));
+            snap.velocities.clear();
+            snap.velocities.extend(state.v.iter().map(|p| [p.x, p.y]));
+            snap.von_mises.clone_from(&self.von_mises);
+            snap.det_f.clear();
+            snap.det_f.extend(self.stress.iter().map(|s| s.det_f));
+            snap.obstacles.clear();
+            snap.obstacles.extend(
+                self.obstacles
+                    .iter()
+                    .map(|poly| poly.iter().map(|p| [p.x, p.y]).collect()),
+            );
+            if keep {
+                self.snapshots.push(snap);
+            } else {
+                self.latest = Some(snap);
+            }
+        }
+        Ok(())
+    }
+
+    /// The kept snapshots, with the last recorded frame appended if it was not kept.
+    fn take_snapshots(&mut self) -> Vec<Snapshot> {
+        let mut out = std::mem::take(&mut self.snapshots);
+        if let Some(last) = self.latest.take() {
+            out.push(last);
+        }
+        out
+    }
+}
+
+/// What the loop reports to the summary.
+struct Outcome {
+    wall: f64,
+    stepping: f64,
+    min_det_f: Real,
+    inverted: usize,
+    blow_up: Option<String>,
+    done: u64,
+    newton_iterations: u64,
+    final_residual: Option<f64>,
+}
+
+fn run_with<E: Energy>(
+    scene: &LoadedScene,
+    env: &mut RunEnv<'_>,
+    mesh: Mesh,
+    energy: E,
+) -> Result<RunResult, SceneError> {
+    let s = &scene.scene;
+    let model = build_model(scene, mesh, energy)?;
+    let mut stepper = build_stepper(scene, &model)?;
+    let probes = resolve_probes(scene, model.mesh());
+    let time_step_warning = stepper.time_step_warning();
+    let mut state = State::at_rest(&model);
+    let (lo, hi) = bounds(model.mesh().vertices());
+    let mut rec = Recorder {
+        formula: von_mises_formula(scene),
+        stress: Vec::new(),
+        von_mises: Vec::new(),
+        obstacles: Vec::new(),
+        frame_times: Vec::new(),
+        probe_series: vec![Vec::new(); probes.len()],
+        max_vm: (f64::NEG_INFINITY, 0, 0, [f64::NAN; 2]),
+        body_size: (hi - lo).norm().max(1e-12),
+        runaway: None,
+        snapshot_every: env.snapshot_every,
+        snapshots: Vec::new(),
+        latest: None,
+    };
+    let outcome = step_loop(
+        scene,
+        env,
+        &model,
+        &mut stepper,
+        &mut state,
+        &mut rec,
+        &probes,
+    )?;
+    let load_stepping = stepper.kind().capabilities().clock == SolverClock::LoadFactor;
+
+    let mesh = model.mesh();
+    let mut vertex_vm = vec![0.0; mesh.n_vertices()];
+    vertex_average(mesh, &rec.von_mises, &mut vertex_vm);
+    let final_positions: Vec<[f64; 2]> = state.x.iter().map(|p| [p.x, p.y]).collect();
+    let final_max_displacement = state
+        .x
+        .iter()
+        .zip(mesh.vertices())
+        .map(|(x, x0)| (x - x0).norm())
+        .fold(0.0, f64::max);
+    let Outcome {
+        wall,
+        stepping,
+        min_det_f,
+        inverted,
+        blow_up,
+        done,
+        newton_iterations,
+        final_residual,
+    } = outcome;
+    // A load-stepping run has no simulated time.
+    let sim = if load_stepping {
+        0.0
+    } else {
+        done as f64 * s.solver.dt
+    };
+    let summary = Summary {
+        scene: s.name.clone(),
+        energy: s.energy,
+        solver: s.solver.kind,
+        plane: s.material.plane,
+        von_mises_formula: rec.formula.describe(),
+        dt: s.solver.dt,
+        steps: s.solver.planned_steps(),
+        steps_completed: done,
+        simulated_seconds: sim,
+        vertices: mesh.n_vertices(),
+        triangles: mesh.n_triangles(),
+        threads: rayon::current_num_threads(),
+        wall_seconds: wall,
+        step_seconds: stepping,
+        element_steps_per_second: if stepping > 0.0 {
+            mesh.n_triangles() as f64 * done as f64 / stepping
+        } else {
+            0.0
+        },
+        real_time_factor: if stepping > 0.0 { sim / stepping } else { 0.0 },
+        max_von_mises: rec.max_vm.0,
+        max_von_mises_step: rec.max_vm.1,
+        max_von_mises_element: rec.max_vm.2,
+        max_von_mises_at: rec.max_vm.3,
+        final_max_von_mises: max_finite(&rec.von_mises),
+        final_max_vertex_von_mises: max_finite(&vertex_vm),
+        min_det_f,
+        inverted_elements: inverted,
+        blew_up: blow_up.is_some(),
+        blow_up_message: blow_up,
+        time_step_warning,
+        final_max_displacement,
+        probes: probes
+            .iter()
+            .zip(&rec.probe_series)
+            .map(|(p, series)| ProbeSummary {
+                name: p.name.clone(),
+                vertex: p.vertex,
+                rest: p.rest,
+                final_displacement: *series.last().unwrap_or(&[0.0, 0.0]),
+                uy_range: series
+                    .iter()
+                    .fold([f64::INFINITY, f64::NEG_INFINITY], |r, u| {
+                        [r[0].min(u[1]), r[1].max(u[1])]
+                    }),
+            })
+            .collect(),
+        newton_iterations,
+        final_residual,
+        version: env!("CARGO_PKG_VERSION").to_owned(),
+    };
+    let snapshots = rec.take_snapshots();
+    Ok(RunResult {
+        summary,
+        snapshots,
+        rest: mesh.vertices().iter().map(|p| [p.x, p.y]).collect(),
+        triangles: mesh.triangles().to_vec(),
+        final_positions,
+        final_von_mises: rec.von_mises,
+        final_vertex_von_mises: vertex_vm,
+        final_obstacles: rec
+            .obstacles
+            .iter()
+            .map(|poly| poly.iter().map(|p| [p.x, p.y]).collect())
+            .collect(),
+        frame_times: rec.frame_times,
+        probe_series: rec.probe_series,
+        probes,
+    })
+}
+
+/// The loop: steps until the run's end (`solver.steps` steps, or the full load), recording a
+/// frame at the output cadence, stopping at the first failed step or runaway.
+fn step_loop<E: Energy>(
+    scene: &LoadedScene,
+    env: &mut RunEnv<'_>,
+    model: &Model<E>,
+    stepper: &mut AnyStepper,
+    state: &mut State,
+    rec: &mut Recorder,
+    probes: &[Probe],
+) -> Result<Outcome, SceneError> {
+    let s = &scene.scene;
+    let caps = stepper.kind().capabilities();
+    let load_stepping = caps.clock == SolverClock::LoadFactor;
+    let clock = env.clock;
+    let start = clock.seconds();
+    rec.record(model, state, probes, &mut env.sinks)?;
+    let planned = s.solver.planned_steps();
+    if let Some(p) = env.progress.as_deref_mut() {
+        p.start(planned);
+    }
+    // Every converged load increment is a frame.
+    let every = if load_stepping {
+        1
+    } else {
+        s.output.frame_every
+    };
+    let finished = |done: u64, state: &State| {
+        if load_stepping {
+            state.t >= 1.0
+        } else {
+            done >= s.solver.steps
+        }
+    };
+    let mut stepping = 0.0;
+    let mut min_det_f = Real::INFINITY;
+    let mut inverted = 0usize;
+    let mut blow_up: Option<String> = None;
+    let mut newton_iterations = 0u64;
+    let mut final_residual = None;
+    let mut done = 0u64;
+    while !finished(done, state) && blow_up.is_none() {
+        let chunk = if load_stepping {
+            1
+        } else {
+            every.min(s.solver.steps - done)
+        };
+        let t0 = clock.seconds();
+        let mut failed: Option<SolverError> = None;
+        for _ in 0..chunk {
+            match stepper.step(model, state) {
+                Ok(report) => {
+                    min_det_f = min_det_f.min(report.min_det_f);
+                    inverted = inverted.max(report.inverted);
+                    if caps.implicit {
+                        newton_iterations += report.iterations as u64;
+                        final_residual = Some(report.residual);
+                    }
+                    done += 1;
+                }
+                Err(e) => {
+                    if let SolverError::NotConverged { iterations, .. } = e {
+                        newton_iterations += iterations as u64;
+                    }
+                    failed = Some(e);
+                    break;
+                }
+            }
+        }
+        stepping += clock.seconds() - t0;
+        if let Some(e) = failed {
+            blow_up = Some(format!("{}: {e}", scene.origin));
+        }
+        if done % every == 0 || finished(done, state) || blow_up.is_some() {
+            if rec.frame_times.last().map(|f| f.0) != Some(state.step) {
+                rec.record(model, state, probes, &mut env.sinks)?;
+            }
+            if blow_up.is_none() {
+                if let Some(m) = rec.runaway.take() {
+                    blow_up = Some(format!("{}: {m}", scene.origin));
+                }
+            }
+        }
+        if let Some(p) = env.progress.as_deref_mut() {
+            p.advance(done);
+        }
+    }
+    if let Some(p) = env.progress.as_deref_mut() {
+        p.finish();
+    }
+    Ok(Outcome {
+        wall: clock.seconds() - start,
+        stepping,
+        min_det_f,
+        inverted,
+        blow_up,
+        done,
+        newton_iterations,
+        final_residual,
+    })
+}
+
+/// The largest finite value (`-inf` when there is none).
+pub fn max_finite(v: &[f64]) -> f64 {
+    v.iter()
+        .copied()
+        .filter(|x| x.is_finite())
+        .fold(f64::NEG_INFINITY, f64::max)
+}
+
+fn bounds(x: &[Vec2]) -> (Vec2, Vec2) {
+    x.iter().fold(
+        (Vec2::repeat(f64::INFINITY), Vec2::repeat(f64::NEG_INFINITY)),
+        |(lo, hi), p| (lo.inf(p), hi.sup(p)),
+    )
+}
