@@ -870,3 +870,24 @@ fn docs_describe_every_field() {
         assert!(docs.contains(&format!("`{}`", s.name())), "{}", s.name());
     }
 }
+
+#[test]
+fn a_run_without_files_or_clock_gives_the_numbers_of_the_run_with_them() {
+    // Case D: the body meshed by the pipeline, contact with the ground and a dynamic slab.
+    let scene = load_case("case-d", &["solver.steps=300".into()]).unwrap();
+    let with = run_scene(&scene, &RunOptions::default()).unwrap();
+    let without = fem_scene::run::run(&scene, &mut fem_scene::run::RunEnv::default()).unwrap();
+    assert_eq!(with.final_positions, without.final_positions);
+    assert_eq!(with.probe_series, without.probe_series);
+    assert_eq!(with.final_von_mises.len(), without.final_von_mises.len());
+    for (a, b) in with.final_von_mises.iter().zip(&without.final_von_mises) {
+        assert!(a == b || (a.is_nan() && b.is_nan()));
+    }
+    let (a, b) = (&with.summary, &without.summary);
+    assert_eq!(a.max_von_mises, b.max_von_mises);
+    assert_eq!(a.min_det_f, b.min_det_f);
+    assert_eq!(a.steps_completed, b.steps_completed);
+    // Only the timings differ: the run without a clock reads zero.
+    assert!(a.step_seconds > 0.0);
+    assert_eq!(b.step_seconds, 0.0);
+}
