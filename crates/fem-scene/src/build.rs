@@ -202,9 +202,7 @@ pub fn lame(scene: &LoadedScene) -> Result<Lame, SceneError> {
 /// The von Mises formula matching the scene's plane model.
 pub fn von_mises_formula(scene: &LoadedScene) -> VonMisesFormula {
     match scene.scene.material.plane {
-        PlaneModel::PlaneStrain => VonMisesFormula::PlaneStrain {
-            poisson_ratio: scene.scene.material.poisson_ratio,
-        },
+        PlaneModel::PlaneStrain => VonMisesFormula::PlaneStrain,
         PlaneModel::PlaneStress => VonMisesFormula::PlaneStress,
     }
 }

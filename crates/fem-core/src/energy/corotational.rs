@@ -1,6 +1,9 @@
 //! Co-rotational: `psi = mu |F - R|^2 + lambda/2 tr(R^T F - I)^2` with `R` the rotation of the
 //! polar decomposition `F = R S` (paper Eq. 2; Kim & Eberle, *Dynamic Deformables*, sec. 3.4).
 //!
+//! It is the 3D form at `F33 = 1` (rotation `diag(R, 1)`), whose out-of-plane stress is
+//! `sigma_zz = lambda tr(R^T F - I) / J` ([`Energy::cauchy_zz`]).
+//!
 //! `R` comes from the closed-form 2D polar decomposition in [`crate::polar`], always a proper
 //! rotation. Because `R` maximises `tr(R^T F)`, the terms with `dR` vanish from `P`:
 //! `P = 2 mu (F - R) + lambda (tr(R^T F) - 2) R`. In `dP/dF` they do not:
@@ -59,6 +62,15 @@ impl Energy for Corotational {
         let t = (r.transpose() * f).trace() - 2.0;
         let psi = self.mu * d.norm_squared() + 0.5 * self.lambda * t * t;
         (psi, d * (2.0 * self.mu) + r * (self.lambda * t))
+    }
+
+    /// `sigma_zz = lambda tr(R^T F - I) / J` (the 3D form with `F33 = 1` and the rotation
+    /// `diag(R, 1)`: `P33 = 2 mu (1 - 1) + lambda tr(R^T F - I)`).
+    #[inline]
+    fn cauchy_zz(&self, f: &Mat2) -> Real {
+        let r = Polar2::new(f).rotation();
+        let t = r[(0, 0)] * (f[(0, 0)] + f[(1, 1)]) + r[(1, 0)] * (f[(1, 0)] - f[(0, 1)]) - 2.0;
+        self.lambda * t / f.determinant()
     }
 
     fn dpk1(&self, f: &Mat2) -> Mat4 {

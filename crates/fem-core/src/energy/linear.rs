@@ -1,6 +1,9 @@
 //! Linear (small-strain) elasticity: `psi = mu |eps|^2 + lambda/2 tr(eps)^2` with
 //! `eps = sym(F) - I`; `P = 2 mu eps + lambda tr(eps) I`; `dP/dF` is constant.
 //!
+//! Its stress is the small-strain stress `P` itself ([`Energy::cauchy`]), with `sigma_zz =
+//! lambda tr(eps)` in plane strain.
+//!
 //! It is the reference every other energy must reduce to at `F = I` (the battery checks it),
 //! and the cheapest. It is **not rotation invariant**: a rigid rotation of the element
 //! produces stress, growing with the angle, so it is wrong for large rotations (a cantilever
@@ -49,6 +52,19 @@ impl Energy for Linear {
     fn pk1(&self, f: &Mat2) -> Mat2 {
         let eps = sym(f) - Mat2::identity();
         eps * (2.0 * self.mu) + Mat2::identity() * (self.lambda * eps.trace())
+    }
+
+    /// The small-strain `sigma_zz = lambda tr(eps)` (`eps_zz = 0`): no push-forward.
+    #[inline]
+    fn cauchy_zz(&self, f: &Mat2) -> Real {
+        self.lambda * (sym(f) - Mat2::identity()).trace()
+    }
+
+    /// The small-strain stress is `P` itself (symmetric); `P F^T / J` would mix in the
+    /// rotation and the volume change that small-strain elasticity leaves out.
+    #[inline]
+    fn cauchy(&self, f: &Mat2) -> Mat2 {
+        self.pk1(f)
     }
 
     fn dpk1(&self, _f: &Mat2) -> Mat4 {

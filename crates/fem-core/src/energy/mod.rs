@@ -58,6 +58,20 @@ pub trait Energy: Send + Sync + Clone + fmt::Debug {
         project_psd(&self.dpk1(f))
     }
 
+    /// The out-of-plane Cauchy stress `sigma_zz` of plane strain, Pa.
+    ///
+    /// Each 2D energy here is a 3D energy evaluated at `F33 = 1` (its module names that 3D
+    /// form), so `sigma_zz = P33 / J` with `P33 = dpsi_3D/dF33` at `F33 = 1`: exact, where the
+    /// small-strain estimate `nu (sigma_xx + sigma_yy)` holds only for linear elasticity. For the
+    /// small-strain energy (`linear`) it is the small-strain stress `P33` itself.
+    fn cauchy_zz(&self, f: &Mat2) -> Real;
+
+    /// The in-plane Cauchy stress, Pa: `P F^T / J` by default; the small-strain energy
+    /// (`linear`) overrides it with its own stress `P` (it has no pushed-forward stress).
+    fn cauchy(&self, f: &Mat2) -> Mat2 {
+        self.pk1(f) * f.transpose() / f.determinant()
+    }
+
     /// `psi` and `P` together; energies override it when the two share work.
     fn psi_pk1(&self, f: &Mat2) -> (Real, Mat2) {
         (self.psi(f), self.pk1(f))
@@ -270,6 +284,12 @@ impl Energy for AnyEnergy {
     }
     fn psi_pk1(&self, f: &Mat2) -> (Real, Mat2) {
         dispatch_energy!(self, e => e.psi_pk1(f))
+    }
+    fn cauchy_zz(&self, f: &Mat2) -> Real {
+        dispatch_energy!(self, e => e.cauchy_zz(f))
+    }
+    fn cauchy(&self, f: &Mat2) -> Mat2 {
+        dispatch_energy!(self, e => e.cauchy(f))
     }
     fn pk1_lanes(&self, f: &Mat2Lanes) -> Mat2Lanes {
         dispatch_energy!(self, e => e.pk1_lanes(f))

@@ -7,6 +7,9 @@
 //! (and doubles the log terms). We implement the standard form above, which is stress-free at
 //! rest and linearises to linear elasticity with the same Lamé parameters.
 //!
+//! It is the 3D form `mu/2 (tr(F^T F) - 3) - mu log J + lambda/2 (log J)^2` at `F33 = 1`, whose
+//! out-of-plane stress is `sigma_zz = lambda log J / J` ([`Energy::cauchy_zz`]).
+//!
 //! `P = mu (F - F^-T) + lambda log J F^-T`;
 //! `dP = mu dF + (mu - lambda log J) F^-T dF^T F^-T + lambda (F^-T : dF) F^-T`.
 //!
@@ -89,6 +92,17 @@ impl Energy for NeoHookean {
         // P = mu F + (lambda log J - mu) F^-T, with F^-T = cof(F) / J: one division.
         let p = f * self.mu + cofactor(f) * ((self.lambda * lj - self.mu) / j);
         (psi, p)
+    }
+
+    /// `sigma_zz = lambda log J / J` (the 3D form with `F33 = 1`: `P33 = lambda log J`);
+    /// not finite for `J <= 0`.
+    #[inline]
+    fn cauchy_zz(&self, f: &Mat2) -> Real {
+        let j = f.determinant();
+        if j <= 0.0 {
+            return Real::NAN;
+        }
+        self.lambda * j.ln() / j
     }
 
     fn dpk1(&self, f: &Mat2) -> Mat4 {

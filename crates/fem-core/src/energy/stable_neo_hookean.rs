@@ -4,6 +4,11 @@
 //! that the rest state has zero energy like every other energy here (a constant changes no
 //! force).
 //!
+//! It is the 3D energy `mu'/2 (I_C3 - 3) + lambda'/2 (J - alpha)^2 - mu'/2 log(I_C3)` at
+//! `F33 = 1` (`I_C3 = I_C + 1`; the paper's 3D form has `log(I_C3 + 1)` and so a different 2D
+//! restriction), which gives the out-of-plane stress of plane strain
+//! ([`Energy::cauchy_zz`]); it linearises to `lambda tr(eps)`, as it must.
+//!
 //! The 3D paper's constants are re-derived for 2D. Stress-free rest (`P(I) = 0`) needs
 //! `alpha = 1 + 2 mu' / (3 lambda')`. Matching the linearisation at `F = I` to linear elasticity
 //! with the material's `(mu, lambda)` needs `mu' = 3/2 mu` and `lambda' = lambda + 2/3 mu`
@@ -77,6 +82,15 @@ impl Energy for StableNeoHookean {
         let ic = f.norm_squared();
         let d = f.determinant() - self.alpha;
         f * (self.mu * (1.0 - 1.0 / (ic + 1.0))) + cofactor(f) * (self.lambda * d)
+    }
+
+    /// `sigma_zz = (mu' (1 - 1/(I_C + 1)) + lambda' (J - alpha) J) / J`: `P33` of the 3D form
+    /// of the module docs at `F33 = 1`.
+    #[inline]
+    fn cauchy_zz(&self, f: &Mat2) -> Real {
+        let ic = f.norm_squared();
+        let j = f.determinant();
+        (self.mu * (1.0 - 1.0 / (ic + 1.0)) + self.lambda * (j - self.alpha) * j) / j
     }
 
     fn dpk1(&self, f: &Mat2) -> Mat4 {

@@ -1,6 +1,9 @@
 //! Saint Venant-Kirchhoff: `psi = mu |E|^2 + lambda/2 tr(E)^2` with Green strain
 //! `E = (F^T F - I) / 2` (paper Eq. 2; Kim & Eberle, *Dynamic Deformables*, 2022, sec. 3.3).
 //!
+//! It is the 3D form at `F33 = 1` (`E33 = 0`), whose out-of-plane stress is
+//! `sigma_zz = lambda tr(E) / J` ([`Energy::cauchy_zz`]).
+//!
 //! `P = F S` with `S = 2 mu E + lambda tr(E) I`. `dP = dF S + F dS`, `dS = 2 mu dE + lambda
 //! tr(dE) I`, `dE = sym(F^T dF)`.
 //!
@@ -63,6 +66,13 @@ impl Energy for Stvk {
         let tr = e.trace();
         let psi = self.mu * ddot(&e, &e) + 0.5 * self.lambda * tr * tr;
         (psi, f * self.pk2(&e))
+    }
+
+    /// `sigma_zz = lambda tr(E) / J` (the 3D form with `F33 = 1`: `E33 = 0`, `S33 = lambda
+    /// tr(E)`, `P33 = S33`).
+    #[inline]
+    fn cauchy_zz(&self, f: &Mat2) -> Real {
+        self.lambda * Self::green(f).trace() / f.determinant()
     }
 
     fn dpk1(&self, f: &Mat2) -> Mat4 {
