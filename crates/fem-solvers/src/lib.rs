@@ -24,8 +24,9 @@
 //! implements [`Solver`] in its own file; adding one is that file, one line in the list, and
 //! the regenerated table of `docs/solvers.md` ([`capability_table`]).
 //!
-//! Also: the explicit stability guard ([`Model::check_time_step`]: smallest element height over
-//! the dilatational wave speed), blow-up detection (a step never writes non-finite values into
+//! Also: the explicit stability guard ([`Model::check_time_step`]: `2 / omega` with `omega` the
+//! element eigenvalue bound on the highest rest-state frequency, provably conservative at the
+//! stiffness at rest), blow-up detection (a step never writes non-finite values into
 //! the state; it returns [`SolverError::NonFinite`] naming the step and the first bad vertex),
 //! and energy diagnostics ([`diagnostics::energies`]).
 //!

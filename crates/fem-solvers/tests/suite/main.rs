@@ -7,6 +7,7 @@ mod battery;
 mod capability_table;
 mod common;
 mod contact;
+mod critical_time_step;
 mod determinism;
 mod explicit;
 mod implicit;
