@@ -125,7 +125,10 @@ impl ExplicitStepper {
     }
 
     /// The stability estimate made at construction; [`TimeStepCheck::warning`] is `Some` when
-    /// `dt` exceeds the critical time step.
+    /// `dt` exceeds the critical time step. The stepper's warning
+    /// ([`Solver::time_step_warning`]) adds, for forward Euler,
+    /// [`TimeStepCheck::forward_euler_warning`]: that scheme amplifies the highest mode at any
+    /// `dt` unless damped enough.
     pub fn time_step_check(&self) -> &TimeStepCheck {
         &self.check
     }
@@ -266,7 +269,16 @@ impl Solver for ExplicitStepper {
     }
 
     fn time_step_warning(&self) -> Option<String> {
-        self.check.warning()
+        let limit = self.check.warning();
+        match self.params.scheme {
+            ExplicitScheme::SymplecticEuler => limit,
+            ExplicitScheme::ForwardEuler => {
+                match (limit, self.check.forward_euler_warning(self.params.damping)) {
+                    (Some(a), Some(b)) => Some(format!("{a}; {b}")),
+                    (a, b) => a.or(b),
+                }
+            }
+        }
     }
 }
 

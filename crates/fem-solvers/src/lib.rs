@@ -26,7 +26,8 @@
 //!
 //! Also: the explicit stability guard ([`Model::check_time_step`]: `2 / omega` with `omega` the
 //! element eigenvalue bound on the highest rest-state frequency, provably conservative at the
-//! stiffness at rest), blow-up detection (a step never writes non-finite values into
+//! stiffness at rest; forward Euler warned about whenever it amplifies that mode), blow-up
+//! detection (a step never writes non-finite values into
 //! the state; it returns [`SolverError::NonFinite`] naming the step and the first bad vertex),
 //! and energy diagnostics ([`diagnostics::energies`]).
 //!

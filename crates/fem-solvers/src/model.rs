@@ -410,6 +410,51 @@ impl TimeStepCheck {
             )
         })
     }
+
+    /// Forward Euler's amplification of the highest elastic mode per step, with velocity
+    /// damping `damping` = `c` (1/s, applied as `v <- v exp(-c dt)`).
+    ///
+    /// For a mode of angular frequency `omega`, the update `x' = x + dt v`,
+    /// `v' = (v - dt omega^2 x) d` with `d = exp(-c dt)` has the matrix
+    /// `[[1, dt], [-omega^2 dt d, d]]`: trace `1 + d`, determinant `d (1 + (omega dt)^2)`. The
+    /// result is its spectral radius; when it exceeds 1 the eigenvalues are a complex pair and it
+    /// equals `sqrt(1 + (omega dt)^2) exp(-c dt / 2)` (the damping acts on the velocity only, so
+    /// the amplitude sees half its rate), which grows with `omega`: evaluated at the bound
+    /// [`TimeStepCheck::omega`] it bounds every mode's growth. It exceeds 1 exactly when
+    /// `c < ln(1 + (omega dt)^2) / dt` ([`TimeStepCheck::forward_euler_damping`]).
+    pub fn forward_euler_growth(&self, damping: Real) -> Real {
+        let w = self.omega() * self.dt;
+        let d = (-damping * self.dt).exp();
+        let (trace, det) = (1.0 + d, d * (1.0 + w * w));
+        let disc = trace * trace - 4.0 * det;
+        if disc < 0.0 {
+            det.sqrt()
+        } else {
+            0.5 * (trace + disc.sqrt())
+        }
+    }
+
+    /// The damping rate (1/s) forward Euler needs for its highest mode not to grow:
+    /// `ln(1 + (omega dt)^2) / dt`.
+    pub fn forward_euler_damping(&self) -> Real {
+        let w = self.omega() * self.dt;
+        (w * w).ln_1p() / self.dt
+    }
+
+    /// A one-line warning when forward Euler with damping `damping` (1/s) amplifies the highest
+    /// elastic mode ([`TimeStepCheck::forward_euler_growth`] above 1), else `None`.
+    pub fn forward_euler_warning(&self, damping: Real) -> Option<String> {
+        let growth = self.forward_euler_growth(damping);
+        (growth > 1.0).then(|| {
+            format!(
+                "forward Euler (x uses the old velocity) amplifies the highest mode (omega <= {:.4e} rad/s) by up to {growth:.4} per step at dt = {:e} s, damping c = {:e} 1/s (growth sqrt(1 + (omega dt)^2) exp(-c dt / 2)); it is unstable unless c >= ln(1 + (omega dt)^2) / dt = {:.4e} 1/s: use the symplectic scheme",
+                self.omega(),
+                self.dt,
+                damping,
+                self.forward_euler_damping()
+            )
+        })
+    }
 }
 
 /// The edges that belong to exactly one triangle, as `[a, b]` in the triangle's

@@ -268,7 +268,8 @@ macro_rules! registry {
             }
 
             /// A warning to show before a run: the explicit stepper's stability check when
-            /// `dt` exceeds the critical time step; `None` otherwise and for other solvers.
+            /// `dt` exceeds the critical time step or, for forward Euler, when the highest mode
+            /// grows per step; `None` otherwise and for other solvers.
             pub fn time_step_warning(&self) -> Option<String> {
                 match self {
                     $(AnyStepper::$variant(s) => <$ty as Solver>::time_step_warning(s),)+

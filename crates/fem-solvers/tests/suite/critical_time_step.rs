@@ -1,16 +1,18 @@
 //! The explicit stability guard. The critical time step against the true rest-state limit
 //! `2 / omega_max` (a dense eigenproblem of the assembled stiffness and the lumped masses) on
-//! beams with every diagonal pattern; case A run just below the estimate.
+//! beams with every diagonal pattern; case A run just below the estimate; the forward Euler
+//! warning.
 //!
 //! Symptom pinned: the former estimate `h_min / sqrt(M / rho)` gave 2.155e-3 s on the case A
-//! mesh, whose true limit is 2.111e-3 s, so runs at dt = 2.12e-3 s blew up without a warning.
+//! mesh, whose true limit is 2.111e-3 s, so runs at dt = 2.12e-3 s blew up without a warning;
+//! and forward Euler, unstable at every dt without enough damping, was never warned about.
 
 use fem_core::assembly::{Stiffness, Tangent, populate_stiffness_serial};
 use fem_core::energy::{Energy, NeoHookean, Stvk};
 use fem_core::math::{Real, Vec2};
 use fem_core::mesh::Mesh;
 use fem_solvers::testing::{BEAM_HEIGHT, BEAM_LENGTH, cantilever, node_index};
-use fem_solvers::{ExplicitParams, ExplicitStepper, Model, State, Stepper};
+use fem_solvers::{ExplicitParams, ExplicitScheme, ExplicitStepper, Model, Solver, State, Stepper};
 use nalgebra::{DMatrix, SymmetricEigen};
 
 use crate::common::case_a_lame;
@@ -169,4 +171,41 @@ fn case_a_runs_just_below_the_estimate() {
     }
     check(Stvk::new(case_a_lame()));
     check(NeoHookean::new(case_a_lame()));
+}
+
+/// Forward Euler on case A at dt = 1e-3 s with damping 0.175 1/s: the highest mode grows by
+/// up to `sqrt(1 + (omega dt)^2) exp(-c dt / 2)` per step (1.4311 with the bound
+/// `omega <= 1024 rad/s`, 1.378 with the true `omega_max = 948 rad/s`; it would take
+/// c >= 717 1/s to be stable), so the stepper warns, and the run does blow up (measured: the
+/// 70th step fails). Symplectic Euler at the same dt is stable and
+/// does not warn.
+#[test]
+fn forward_euler_is_warned_about_and_blows_up() {
+    let model = cantilever(beam(20, 4, Pattern::Left), Stvk::new(case_a_lame())).unwrap();
+    let params = ExplicitParams {
+        dt: 1e-3,
+        damping: CASE_A_DAMPING,
+        scheme: ExplicitScheme::ForwardEuler,
+    };
+    let stepper = ExplicitStepper::new(&model, params).unwrap();
+    let growth = stepper
+        .time_step_check()
+        .forward_euler_growth(params.damping);
+    assert!((growth - 1.4311).abs() < 1e-4, "{growth}");
+    let warning = stepper
+        .time_step_warning()
+        .expect("forward Euler must warn");
+    assert!(
+        warning.starts_with("forward Euler (x uses the old velocity) amplifies"),
+        "{warning}"
+    );
+    assert!(run(&model, params, 2000).is_some());
+
+    let symplectic = ExplicitParams {
+        scheme: ExplicitScheme::SymplecticEuler,
+        ..params
+    };
+    let stepper = ExplicitStepper::new(&model, symplectic).unwrap();
+    assert_eq!(stepper.time_step_warning(), None);
+    assert_eq!(run(&model, symplectic, 2000), None);
 }
