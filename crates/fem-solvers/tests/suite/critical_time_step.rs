@@ -9,69 +9,12 @@
 
 use fem_core::assembly::{Stiffness, Tangent, populate_stiffness_serial};
 use fem_core::energy::{Energy, NeoHookean, Stvk};
-use fem_core::math::{Real, Vec2};
-use fem_core::mesh::Mesh;
-use fem_solvers::testing::{BEAM_HEIGHT, BEAM_LENGTH, cantilever, node_index};
+use fem_core::math::Real;
+use fem_solvers::testing::cantilever;
 use fem_solvers::{ExplicitParams, ExplicitScheme, ExplicitStepper, Model, Solver, State, Stepper};
 use nalgebra::{DMatrix, SymmetricEigen};
 
-use crate::common::case_a_lame;
-
-/// How each cell of a structured beam is split.
-#[derive(Clone, Copy, Debug)]
-enum Pattern {
-    /// `/` in every cell.
-    Right,
-    /// `\` in every cell.
-    Left,
-    /// `/` and `\` in a checkerboard.
-    Alternating,
-    /// Four triangles around the cell centre.
-    Crossed,
-}
-
-const PATTERNS: [Pattern; 4] = [
-    Pattern::Right,
-    Pattern::Left,
-    Pattern::Alternating,
-    Pattern::Crossed,
-];
-
-/// The case A beam with `nx` x `ny` cells split by `pattern`; grid vertex `(i, j)` has the
-/// index of [`node_index`], cell centres (crossed) follow the grid.
-fn beam(nx: usize, ny: usize, pattern: Pattern) -> Mesh {
-    let (hx, hy) = (BEAM_LENGTH / nx as Real, BEAM_HEIGHT / ny as Real);
-    let mut vertices = Vec::new();
-    for i in 0..=nx {
-        for j in 0..=ny {
-            vertices.push(Vec2::new(i as Real * hx, j as Real * hy));
-        }
-    }
-    let mut triangles = Vec::new();
-    for i in 0..nx {
-        for j in 0..ny {
-            let n = |i, j| node_index(i, j, ny) as u32;
-            let (a, b, c, d) = (n(i, j), n(i + 1, j), n(i + 1, j + 1), n(i, j + 1));
-            let right = match pattern {
-                Pattern::Right => true,
-                Pattern::Left => false,
-                Pattern::Alternating => (i + j) % 2 == 0,
-                Pattern::Crossed => {
-                    let m = vertices.len() as u32;
-                    vertices.push(Vec2::new((i as Real + 0.5) * hx, (j as Real + 0.5) * hy));
-                    triangles.extend([[a, b, m], [b, c, m], [c, d, m], [d, a, m]]);
-                    continue;
-                }
-            };
-            if right {
-                triangles.extend([[a, b, c], [a, c, d]]);
-            } else {
-                triangles.extend([[a, b, d], [b, c, d]]);
-            }
-        }
-    }
-    Mesh::new(vertices, triangles).unwrap()
-}
+use crate::common::{PATTERNS, Pattern, beam, case_a_lame};
 
 /// The true rest-state limit `2 / omega_max`, s: `omega_max^2` is the largest eigenvalue of
 /// `M^-1 K` over the free degrees of freedom, solved densely as `M^-1/2 K M^-1/2`.
