@@ -283,18 +283,18 @@ fn energy_and_solver_flags_reach_the_run() {
         let out_dir = dir.join(solver);
         run_ok(
             &[
-                "case-c", "--steps", "30", "--solver", solver, "--dt", "2e-3",
+                "case-c", "--steps", "30", "--solver", solver, "--dt", "1.5e-3",
             ],
             &out_dir,
         );
         let s = json(&out_dir.join("summary.json"));
         check_contract_fields(&s);
         assert_eq!(s["solver"], solver);
-        assert_eq!(s["dt"], 2e-3);
+        assert_eq!(s["dt"], 1.5e-3);
         assert_eq!(s["blew_up"], false);
         let (_, rows) = csv(&out_dir.join("probes.csv"));
         assert_eq!(rows.len(), 4);
-        assert!((rows[3][1] - 0.06).abs() < 1e-12);
+        assert!((rows[3][1] - 0.045).abs() < 1e-12);
     }
     std::fs::remove_dir_all(&dir).unwrap();
 }
