@@ -687,7 +687,7 @@ fn step_loop<E: Energy>(
 }
 
 /// The largest finite value (`-inf` when there is none).
-pub fn max_finite(v: &[f64]) -> f64 {
+fn max_finite(v: &[f64]) -> f64 {
     v.iter()
         .copied()
         .filter(|x| x.is_finite())
