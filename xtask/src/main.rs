@@ -11,6 +11,8 @@
 //!   (1 mm tolerance) and is part of CI.
 //! - `cargo xtask bench-cases [--quick] [--out DIR]`: every case x energy x solver on one
 //!   thread, best of 3, into `docs/bench-cases.md` and `docs/bench-cases.json`.
+//! - `cargo xtask bench-peers --peers DIR [--quick] [--out FILE]`: the explicit kernel against
+//!   the same kernel in NVIDIA Warp and Taichi (the peer scripts in `DIR`), side by side.
 //! - `cargo xtask stability`: the stability and accuracy maps of every energy x solver
 //!   (`docs/stability.md`, with SVG plots in `docs/figures/`).
 //! - `cargo xtask figures`: the paper's Figures 1-5 and the plots into `docs/figures/`
@@ -22,6 +24,7 @@
 //! release `fem2d` binary as a subprocess and reads its JSON.
 
 mod bench_cases;
+mod bench_peers;
 mod figures;
 mod goldens;
 mod stability;
@@ -44,6 +47,10 @@ tasks:
                        cases A-D x 5 energies x 3 solvers on one thread, best of 3, into
                        docs/bench-cases.{md,json}; --quick: one repeat, a tenth of the steps,
                        printed (written only with --out)
+  bench-peers --peers DIR [--quick] [--out FILE]
+                       the explicit kernel (Neo-Hookean, StVK; 16k/64k/256k triangles; 1 and
+                       2 threads) against the peer scripts in DIR (NVIDIA Warp, Taichi), run
+                       alternately, best of 3; a markdown table
   stability            the stability map (largest stable dt against E) and the accuracy map
                        (error against cost) of every energy x solver, into docs/stability.md
                        and docs/figures/{stability,accuracy}-map.svg
@@ -92,6 +99,7 @@ fn run(args: &[String]) -> Result<(), String> {
         Some("table1") => table1::run(&rest),
         Some("stability") => stability::run(&rest),
         Some("bench-cases") => bench_cases::run(&rest),
+        Some("bench-peers") => bench_peers::run(&rest),
         Some("goldens") => goldens::run(&rest),
         Some("figures") => figures::run(&rest),
         Some("help" | "-h" | "--help") => {

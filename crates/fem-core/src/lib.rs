@@ -14,6 +14,8 @@
 //! - [`assembly`]: energy, forces and stiffness; serial reference and bit-identical parallel
 //!   paths.
 //! - [`stress`]: Cauchy, von Mises (formula stated) and principal stresses.
+//! - [`simd`]: the instruction set (baseline, AVX2, AVX-512) the batched kernels run under,
+//!   picked at run time, with the same results on each.
 //! - [`fd`]: the finite-difference oracle the tests use.
 //!
 //! Units are SI, per unit thickness. Notation (`F`, `P`, `J`, `psi`) follows continuum
@@ -48,6 +50,7 @@ pub mod math;
 pub mod mesh;
 pub mod partition;
 pub mod polar;
+pub mod simd;
 pub mod stress;
 
 pub use material::{Lame, Material, MaterialError, PlaneModel};

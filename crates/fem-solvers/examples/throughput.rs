@@ -1,5 +1,5 @@
 //! Throughput of the steppers on the case A beam: element-steps per second of the explicit
-//! stepper for Neo-Hookean, StVK and co-rotational at 1k, 16k, 64k and 256k triangles, and the
+//! stepper for every energy at 1k, 16k, 64k and 256k triangles, and the
 //! time per constraint iteration of PBD and XPBD.
 //!
 //! Run (release; pin single-thread runs to one core):
@@ -11,14 +11,17 @@
 //!
 //! Options: `--threads N` (rayon pool size, default 1), `--sizes 1000,16000,...` (triangle
 //! counts), `--seconds S` (target time per measurement, default 0.5), `--repeat R` (best of R,
-//! default 3), `--skip-pbd`, `--energies neo-hookean,stvk,corotational` (explicit rows to run). The set-up matches the peer scripts: 5 m x 1 m beam, left edge
+//! default 3), `--skip-pbd`, `--energies neo-hookean,stvk,...` (explicit rows to run; default
+//! all five), `--json` (also print one `RESULT {json}` line per explicit measurement, read by
+//! `cargo xtask bench-peers`). The set-up matches the peer scripts: 5 m x 1 m beam, left edge
 //! pinned, gravity, E = 1000 Pa, nu = 0.3, 1 kg, symplectic Euler, damping 1/s, dt half the
-//! critical step.
+//! critical step. The explicit force kernel runs under the instruction set picked at run time
+//! (printed; `FEM2D_SIMD=baseline|avx2|avx512` caps it).
 
 use std::time::Instant;
 
 use fem_core::PlaneModel;
-use fem_core::energy::{Corotational, Energy, NeoHookean, Stvk};
+use fem_core::energy::{Corotational, Energy, Linear, NeoHookean, StableNeoHookean, Stvk};
 use fem_core::material::Material;
 use fem_solvers::testing::{self, beam_cells_for, beam_mesh, cantilever};
 use fem_solvers::{
@@ -33,6 +36,7 @@ struct Options {
     repeat: usize,
     pbd: bool,
     energies: Option<Vec<String>>,
+    json: bool,
 }
 
 fn parse() -> Result<Options, String> {
@@ -43,6 +47,7 @@ fn parse() -> Result<Options, String> {
         repeat: 3,
         pbd: true,
         energies: None,
+        json: false,
     };
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
@@ -58,6 +63,7 @@ fn parse() -> Result<Options, String> {
             "--seconds" => o.seconds = value()?.parse().map_err(|e| format!("--seconds: {e}"))?,
             "--repeat" => o.repeat = value()?.parse().map_err(|e| format!("--repeat: {e}"))?,
             "--skip-pbd" => o.pbd = false,
+            "--json" => o.json = true,
             "--energies" => o.energies = Some(value()?.split(',').map(str::to_owned).collect()),
             other => return Err(format!("unknown option `{other}`")),
         }
@@ -118,7 +124,8 @@ fn explicit_row<E: Energy>(energy: E, o: &Options) {
     {
         return;
     }
-    print!("{name:<14}");
+    print!("{name:<19}");
+    let mut results = Vec::new();
     for &n in &o.sizes {
         let m = model(energy.clone(), n);
         let dt = 0.5 * m.check_time_step(1.0).critical();
@@ -132,9 +139,19 @@ fn explicit_row<E: Energy>(energy: E, o: &Options) {
         )
         .unwrap();
         let t = time_per_step(&m, &State::at_rest(&m), &s, o.seconds, o.repeat);
-        print!(" {:>10.3e}", m.mesh().n_triangles() as f64 / t);
+        let rate = m.mesh().n_triangles() as f64 / t;
+        print!(" {rate:>10.3e}");
+        results.push(format!(
+            r#"RESULT {{"impl": "fem2d", "energy": "{name}", "elements": {}, "threads": {}, "isa": "{}", "elem_steps_per_s": {rate:.6e}}}"#,
+            m.mesh().n_triangles(),
+            o.threads,
+            m.isa(),
+        ));
     }
     println!();
+    if o.json {
+        results.iter().for_each(|r| println!("{r}"));
+    }
 }
 
 fn main() {
@@ -154,10 +171,12 @@ fn main() {
             .unwrap()
             .lame(PlaneModel::PlaneStrain);
         println!(
-            "explicit, element-steps per second, {} thread(s), best of {}",
-            o.threads, o.repeat
+            "explicit, element-steps per second, {} thread(s), best of {}, force kernel: {}",
+            o.threads,
+            o.repeat,
+            fem_core::simd::Isa::detected()
         );
-        print!("{:<14}", "triangles");
+        print!("{:<19}", "triangles");
         for &n in &o.sizes {
             let (nx, ny) = beam_cells_for(n);
             print!(" {:>10}", 2 * nx * ny);
@@ -166,6 +185,8 @@ fn main() {
         explicit_row(NeoHookean::new(lame), &o);
         explicit_row(Stvk::new(lame), &o);
         explicit_row(Corotational::new(lame), &o);
+        explicit_row(StableNeoHookean::new(lame).unwrap(), &o);
+        explicit_row(Linear::new(lame), &o);
         if o.pbd {
             println!(
                 "position-based (StVK, coloured Gauss-Seidel, 10 iterations, from a 1% stretch), time per iteration"

@@ -20,6 +20,7 @@
 
 use fem_core::energy::Energy;
 use fem_core::math::{Real, Vec2};
+use fem_core::simd::Isa;
 use rayon::prelude::*;
 
 use crate::commit::{Kinematic, StepEnd};
@@ -165,6 +166,7 @@ impl Stepper for ExplicitStepper {
             &state.x,
             &mut self.f,
             &mut self.slots,
+            model.isa(),
         );
         for &(v, fe) in model.external_forces() {
             self.f[v as usize] += fe;
@@ -186,6 +188,7 @@ impl Stepper for ExplicitStepper {
         };
 
         let known_finite = integrate(
+            model.isa(),
             self.params.scheme,
             dt,
             self.decay,
@@ -287,6 +290,7 @@ impl Solver for ExplicitStepper {
 /// fixed chunks; the arithmetic per vertex does not depend on the thread count.
 #[allow(clippy::too_many_arguments)]
 fn integrate(
+    isa: Isa,
     scheme: ExplicitScheme,
     dt: Real,
     decay: Real,
@@ -300,10 +304,10 @@ fn integrate(
 ) -> bool {
     match scheme {
         ExplicitScheme::SymplecticEuler => {
-            integrate_with::<true>(dt, decay, g, x, v, f, w, x_new, v_new)
+            integrate_with::<true>(isa, dt, decay, g, x, v, f, w, x_new, v_new)
         }
         ExplicitScheme::ForwardEuler => {
-            integrate_with::<false>(dt, decay, g, x, v, f, w, x_new, v_new)
+            integrate_with::<false>(isa, dt, decay, g, x, v, f, w, x_new, v_new)
         }
     }
 }
@@ -312,6 +316,7 @@ fn integrate(
 /// body has no branch; zipped iterators, so it has no bounds checks either.
 #[allow(clippy::too_many_arguments)]
 fn integrate_with<const SYMPLECTIC: bool>(
+    isa: Isa,
     dt: Real,
     decay: Real,
     g: Vec2,
@@ -322,26 +327,43 @@ fn integrate_with<const SYMPLECTIC: bool>(
     x_new: &mut [Vec2],
     v_new: &mut [Vec2],
 ) -> bool {
+    #[inline(always)]
+    fn update<const SYMPLECTIC: bool>(
+        (dt, decay, g): (Real, Real, Vec2),
+        xn: &mut [Vec2],
+        vn: &mut [Vec2],
+        x: &[Vec2],
+        v: &[Vec2],
+        f: &[Vec2],
+        w: &[Real],
+    ) -> bool {
+        // One running flag: the sum of a vertex's four values is finite when they all are
+        // (a finite sum that overflows only raises a false alarm, which the caller's
+        // per-vertex scan then clears).
+        let mut ok = true;
+        for (((((xn, vn), &xi), &vi), &fi), &wi) in
+            xn.iter_mut().zip(vn).zip(x).zip(v).zip(f).zip(w)
+        {
+            let v1 = (vi + (fi * wi + g) * dt) * decay;
+            let x1 = if SYMPLECTIC {
+                xi + v1 * dt
+            } else {
+                xi + vi * dt
+            };
+            ok &= (x1.x + x1.y + v1.x + v1.y).is_finite();
+            *xn = x1;
+            *vn = v1;
+        }
+        ok
+    }
+    // Compiled for the kernels' instruction set; element-wise IEEE arithmetic, so the same
+    // bits under every set.
     let chunk =
         |xn: &mut [Vec2], vn: &mut [Vec2], x: &[Vec2], v: &[Vec2], f: &[Vec2], w: &[Real]| {
-            // One running flag: the sum of a vertex's four values is finite when they all are
-            // (a finite sum that overflows only raises a false alarm, which the caller's
-            // per-vertex scan then clears).
-            let mut ok = true;
-            for (((((xn, vn), &xi), &vi), &fi), &wi) in
-                xn.iter_mut().zip(vn).zip(x).zip(v).zip(f).zip(w)
-            {
-                let v1 = (vi + (fi * wi + g) * dt) * decay;
-                let x1 = if SYMPLECTIC {
-                    xi + v1 * dt
-                } else {
-                    xi + vi * dt
-                };
-                ok &= (x1.x + x1.y + v1.x + v1.y).is_finite();
-                *xn = x1;
-                *vn = v1;
-            }
-            ok
+            isa.run(
+                #[inline(always)]
+                || update::<SYMPLECTIC>((dt, decay, g), xn, vn, x, v, f, w),
+            )
         };
     if rayon::current_num_threads() == 1 {
         return chunk(x_new, v_new, x, v, f, w);

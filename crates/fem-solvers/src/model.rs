@@ -8,6 +8,7 @@
 use fem_core::energy::Energy;
 use fem_core::math::{Mat2, Mat6, Real, Vec2};
 use fem_core::mesh::Mesh;
+use fem_core::simd::Isa;
 use nalgebra::SymmetricEigen;
 
 use crate::bc::{Kinematics, PrescribedMotion, Region};
@@ -38,6 +39,8 @@ pub struct Model<E: Energy> {
     pub(crate) elements: Vec<PackedElement>,
     /// The same elements in blocks for the batched force kernel (triangle order).
     pub(crate) blocks: Vec<ElementBlock>,
+    /// The instruction set the batched force kernel runs under.
+    isa: Isa,
     modulus: Real,
 }
 
@@ -73,6 +76,7 @@ impl<E: Energy> Model<E> {
         let elements = pack(&mesh);
         Ok(Model {
             blocks: pack_blocks(&elements),
+            isa: Isa::detected(),
             elements,
             mesh,
             energy,
@@ -237,6 +241,19 @@ impl<E: Energy> Model<E> {
         for v in self.kinematics.vertices() {
             self.inv_masses[v] = 0.0;
         }
+    }
+
+    /// The instruction set the explicit force kernel runs under: [`Isa::detected`] unless
+    /// set with [`Model::set_isa`].
+    pub fn isa(&self) -> Isa {
+        self.isa
+    }
+
+    /// Run the explicit force kernel under `isa` (or the widest supported set below it). The
+    /// results are the same bits under every set (see [`fem_core::simd`]); only the speed
+    /// changes.
+    pub fn set_isa(&mut self, isa: Isa) {
+        self.isa = isa;
     }
 
     /// The mesh.

@@ -20,7 +20,7 @@
 
 use super::Energy;
 use crate::material::Lame;
-use crate::math::{Mat2, Mat2Lanes, Mat4, Real, cofactor, linear_map_matrix, outer};
+use crate::math::{Mat2, Mat2Lanes, Mat4, Real, cofactor, linear_map_matrix, ln, outer};
 
 /// Compressible Neo-Hookean energy.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -50,7 +50,7 @@ impl Energy for NeoHookean {
         if j <= 0.0 {
             return Real::INFINITY;
         }
-        let lj = j.ln();
+        let lj = ln(j);
         0.5 * self.mu * (f.norm_squared() - 2.0) - self.mu * lj + 0.5 * self.lambda * lj * lj
     }
 
@@ -60,7 +60,7 @@ impl Energy for NeoHookean {
         if j <= 0.0 {
             return Mat2::from_element(Real::NAN);
         }
-        f * self.mu + cofactor(f) * ((self.lambda * j.ln() - self.mu) / j)
+        f * self.mu + cofactor(f) * ((self.lambda * ln(j) - self.mu) / j)
     }
 
     /// Lane-wise [`Energy::pk1`]: the same operations in the same order per lane, with
@@ -86,7 +86,7 @@ impl Energy for NeoHookean {
         if j <= 0.0 {
             return (Real::INFINITY, Mat2::from_element(Real::NAN));
         }
-        let lj = j.ln();
+        let lj = ln(j);
         let psi =
             0.5 * self.mu * (f.norm_squared() - 2.0) - self.mu * lj + 0.5 * self.lambda * lj * lj;
         // P = mu F + (lambda log J - mu) F^-T, with F^-T = cof(F) / J: one division.
@@ -102,7 +102,7 @@ impl Energy for NeoHookean {
         if j <= 0.0 {
             return Real::NAN;
         }
-        self.lambda * j.ln() / j
+        self.lambda * ln(j) / j
     }
 
     fn dpk1(&self, f: &Mat2) -> Mat4 {
@@ -110,7 +110,7 @@ impl Energy for NeoHookean {
         if j <= 0.0 {
             return Mat4::from_element(Real::NAN);
         }
-        let lj = j.ln();
+        let lj = ln(j);
         let f_inv_t = cofactor(f) / j;
         let c = self.mu - self.lambda * lj;
         Mat4::identity() * self.mu

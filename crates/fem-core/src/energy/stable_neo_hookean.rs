@@ -25,7 +25,7 @@
 
 use super::{Energy, EnergyError};
 use crate::material::Lame;
-use crate::math::{Mat2, Mat4, Real, cofactor, outer};
+use crate::math::{Mat2, Mat4, Real, cofactor, ln, outer};
 
 /// Stable Neo-Hookean energy (2D constants).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -53,7 +53,7 @@ impl StableNeoHookean {
             });
         }
         let alpha = 1.0 + 2.0 * mu / (3.0 * lambda);
-        let rest_offset = 0.5 * lambda * (1.0 - alpha).powi(2) - 0.5 * mu * 3.0_f64.ln();
+        let rest_offset = 0.5 * lambda * (1.0 - alpha).powi(2) - 0.5 * mu * ln(3.0);
         Ok(StableNeoHookean {
             mu,
             lambda,
@@ -73,7 +73,7 @@ impl Energy for StableNeoHookean {
         let ic = f.norm_squared();
         let d = f.determinant() - self.alpha;
         0.5 * self.mu * (ic - 2.0) + 0.5 * self.lambda * d * d
-            - 0.5 * self.mu * (ic + 1.0).ln()
+            - 0.5 * self.mu * ln(ic + 1.0)
             - self.rest_offset
     }
 
