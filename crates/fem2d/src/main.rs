@@ -51,6 +51,12 @@ fn main() -> std::process::ExitCode {
             return std::process::ExitCode::from(2);
         }
     };
+    // FEM2D_SIMD caps the instruction set of the force kernels; a value naming none is an
+    // error rather than silently ignored.
+    if let Err(message) = fem_core::simd::Isa::from_env() {
+        eprintln!("error: {message}");
+        return std::process::ExitCode::from(2);
+    }
     let result = match args.command {
         Command::Run(a) => cli::run::run(&a),
         Command::Compare(a) => cli::compare::run(&a),

@@ -610,3 +610,37 @@ fn a_run_that_blows_up_fails_and_says_so_in_the_summary() {
     );
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// `FEM2D_SIMD` caps the force kernel's instruction set: case A (Neo-Hookean, 300 steps, two
+/// threads) writes the same probes and summary under the baseline set as under the widest set
+/// of the machine, bit for bit; a value that names no set is a one-line error, exit code 2.
+#[test]
+fn instruction_set_cap_changes_nothing_but_speed_and_bad_values_are_rejected() {
+    let run = |simd: &str, name: &str| {
+        let dir = scratch(name);
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_fem2d"))
+            .args(["run", "case-a", "--energy", "neo-hookean", "--steps", "300"])
+            .args(["--threads", "2", "--out", arg(&dir), "-q"])
+            .env("FEM2D_SIMD", simd)
+            .output()
+            .unwrap();
+        (out, dir)
+    };
+    let (wide, wide_dir) = run("avx512", "simd-widest");
+    let (base, base_dir) = run("baseline", "simd-baseline");
+    assert!(wide.status.success() && base.status.success());
+    assert_eq!(
+        read(&wide_dir.join("probes.csv")),
+        read(&base_dir.join("probes.csv"))
+    );
+    assert_eq!(
+        without_timings(json(&wide_dir.join("summary.json"))),
+        without_timings(json(&base_dir.join("summary.json")))
+    );
+    let (bad, bad_dir) = run("sse9", "simd-bad");
+    assert_eq!(bad.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(err.starts_with("error: FEM2D_SIMD = `sse9`"), "{err}");
+    assert!(listing(&bad_dir).is_empty());
+}
