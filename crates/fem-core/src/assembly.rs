@@ -156,13 +156,7 @@ pub fn populate_forces<E: Energy>(
         let mut total = report.lock().unwrap_or_else(|p| p.into_inner());
         *total = AssemblyReport::merge(*total, r);
     });
-    for (v, slots) in plan.shared() {
-        let mut s = Vec2::zeros();
-        for &slot in slots {
-            s += scratch.slots[slot as usize];
-        }
-        f[v] = s;
-    }
+    plan.sum_shared(f, &scratch.slots, Vec2::zeros());
     report.into_inner().unwrap_or_else(|p| p.into_inner())
 }
 

@@ -336,11 +336,7 @@ pub(crate) fn forces<E: Energy>(
         let mut t = total.lock().unwrap_or_else(|p| p.into_inner());
         *t = Inversion::merge(*t, inv);
     });
-    for (v, vs) in plan.shared() {
-        f[v] = vs
-            .iter()
-            .fold(Vec2::zeros(), |acc, &s| acc + slots[s as usize]);
-    }
+    plan.sum_shared(f, slots, Vec2::zeros());
     total.into_inner().unwrap_or_else(|p| p.into_inner())
 }
 
