@@ -124,14 +124,18 @@ pub fn ln(x: Real) -> Real {
     let subnormal = x < f64::MIN_POSITIVE;
     let xs = if subnormal { x * TWO54 } else { x };
     let bits = xs.to_bits();
-    // High 20 bits of the mantissa (fdlibm's `hx & 0x000fffff`).
-    let hx = (bits >> 32) & 0x000f_ffff;
-    // 0x100000 when the mantissa is at least sqrt(2) (then x / 2 is used and k is one more).
-    let i = (hx + 0x95f64) & 0x0010_0000;
-    let y = f64::from_bits((bits & 0x000f_ffff_ffff_ffff) | ((i ^ 0x3ff0_0000) << 32));
-    let exponent = f64::from_bits(MAGIC | ((bits >> 52) & 0x7ff)) - magic;
-    let dk = (exponent - 1023.0 + f64::from_bits(MAGIC | (i >> 20)) - magic)
-        - if subnormal { 54.0 } else { 0.0 };
+    // The mantissa as a number in [1, 2). fdlibm tests the high 20 bits of the mantissa, `hx`,
+    // with integer arithmetic; the same tests are written here as comparisons of `m` with the
+    // doubles whose high words are fdlibm's thresholds (exactly equivalent, and cheaper in
+    // vector registers, which lack most 64-bit integer comparisons below AVX-512).
+    let m = f64::from_bits((bits & 0x000f_ffff_ffff_ffff) | 0x3ff0_0000_0000_0000);
+    // fdlibm's `(hx + 0x95f64) & 0x100000`: the mantissa is at least about sqrt(2) (hx >=
+    // 0x6a09c); then m / 2 (exact) is used and k is one more.
+    let high = m >= f64::from_bits(0x3ff6_a09c_0000_0000);
+    let y = if high { m * 0.5 } else { m };
+    let exponent = f64::from_bits(MAGIC | (bits >> 52)) - magic;
+    let dk =
+        (exponent - 1023.0 + if high { 1.0 } else { 0.0 }) - if subnormal { 54.0 } else { 0.0 };
 
     let f = y - 1.0;
     let s = f / (2.0 + f);
@@ -141,9 +145,10 @@ pub fn ln(x: Real) -> Real {
     let t2 = z * (LG1 + w * (LG3 + w * (LG5 + w * LG7)));
     let r = t2 + t1;
     let hfsq = 0.5 * f * f;
-    // fdlibm's `(hx - 0x6147a) | (0x6b851 - hx) > 0`: the mantissa near sqrt(2), where |f| is
-    // largest and the `hfsq` form is the more accurate one.
-    let away = (0x6147a..=0x6b851).contains(&hx);
+    // fdlibm's `(hx - 0x6147a) | (0x6b851 - hx) > 0` (0x6147a <= hx <= 0x6b851): the mantissa
+    // near sqrt(2), where |f| is largest and the `hfsq` form is the more accurate one.
+    let away =
+        m >= f64::from_bits(0x3ff6_147a_0000_0000) && m <= f64::from_bits(0x3ff6_b851_ffff_ffff);
     let near = dk * LN2_HI - ((s * (f - r) - dk * LN2_LO) - f);
     let far = dk * LN2_HI - ((hfsq - (s * (hfsq + r) + dk * LN2_LO)) - f);
     let out = if away { far } else { near };
