@@ -5,6 +5,8 @@
 //! command line in the `fem2d` crate.
 //! - [`run`]: a scene run on a thread pool of the requested size with the system clock, its
 //!   outputs (`summary.json`, `probes.csv`, `frames.jsonl`, VTK, ...) written atomically;
+//! - [`outdir`]: output directories written as a unit (a lock, a staging directory renamed
+//!   into place, leftovers of killed writers cleaned, only fem2d's own directories replaced);
 //! - [`files`]: scene files, "case or file" arguments, mesh files next to the scene;
 //! - [`compare`]: the energy x solver matrix on one scene;
 //! - [`sweep`]: parameter sweeps split into shards, and their merge;
@@ -29,6 +31,7 @@
 pub mod compare;
 pub mod figures;
 pub mod files;
+pub mod outdir;
 pub mod pictures;
 pub mod report;
 pub mod run;

@@ -1,8 +1,9 @@
 //! Running a scene with files: the run of `fem-scene` on a rayon pool of the requested size,
 //! with the system clock, mesh files read next to the scene file, and the run outputs.
 //!
-//! Outputs (in `--out DIR`, each written to a temporary file and renamed, so a file is either
-//! complete or absent):
+//! Outputs (in [`RunOptions::out_dir`], each written to a temporary file and renamed, so a file
+//! is either complete or absent; `fem2d run` points it at the staging directory of an
+//! [`OutDir`](crate::outdir::OutDir), so the whole directory is replaced as a unit):
 //! - `summary.json`: the [`Summary`] (the BRIEF's contract fields plus more);
 //! - `probes.csv`: one row per frame, `step,time` then `NAME.ux,NAME.uy` per probe (metres);
 //! - `frames.jsonl` (unless `output.frames = false`): one JSON object per frame with the
@@ -103,12 +104,15 @@ fn run_in_pool(
     let mut frames = None;
     let mut vtk = None;
     if let Some(dir) = &options.out_dir {
-        std::fs::create_dir_all(dir).map_err(|e| {
-            SceneError::Io(format!(
-                "{}: cannot create the output directory: {e}",
-                dir.display()
-            ))
-        })?;
+        // Only when missing: a staging directory removed by an interruption is not recreated.
+        if !dir.is_dir() {
+            std::fs::create_dir_all(dir).map_err(|e| {
+                SceneError::Io(format!(
+                    "{}: cannot create the output directory: {e}",
+                    dir.display()
+                ))
+            })?;
+        }
         if scene.scene.output.frames {
             frames = Some(FramesJsonl::create(dir)?);
         }
@@ -242,6 +246,13 @@ struct VtkSink {
 
 impl VtkSink {
     fn create(dir: &Path) -> Result<Self, SceneError> {
+        // Not recursive: fails rather than recreate a staging directory removed meanwhile.
+        let vtk = dir.join("vtk");
+        if let Err(e) = std::fs::create_dir(&vtk) {
+            if e.kind() != std::io::ErrorKind::AlreadyExists {
+                return Err(SceneError::Io(format!("{}: {e}", vtk.display())));
+            }
+        }
         Ok(VtkSink {
             writer: fem_render::vtk::PvdWriter::new(&dir.join("vtk"), "run")
                 .map_err(|e| SceneError::Io(e.to_string()))?,

@@ -51,6 +51,18 @@ fn main() -> std::process::ExitCode {
             return std::process::ExitCode::from(2);
         }
     };
+    // An interruption leaves every output directory as it was before the command (see
+    // fem_cases::outdir): the staging directories go, the previous outputs stay.
+    let _ = ctrlc::set_handler(|| {
+        let targets = fem_cases::outdir::interrupted();
+        let names: Vec<String> = targets.iter().map(|t| t.display().to_string()).collect();
+        if names.is_empty() {
+            eprintln!("error: interrupted");
+        } else {
+            eprintln!("error: interrupted; {} left as it was", names.join(", "));
+        }
+        std::process::exit(130);
+    });
     // FEM2D_SIMD caps the instruction set of the force kernels; a value naming none is an
     // error rather than silently ignored.
     if let Err(message) = fem_core::simd::Isa::from_env() {

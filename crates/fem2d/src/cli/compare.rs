@@ -6,6 +6,7 @@ use std::path::PathBuf;
 use clap::{Args, ValueEnum};
 use fem_cases::compare::{CompareSpec, VariantAxis, compare};
 use fem_cases::files::load_case_or_file;
+use fem_cases::outdir::OutDir;
 use fem_cases::run::write_atomic;
 use fem_core::energy::EnergyKind;
 use fem_solvers::SolverKind;
@@ -117,9 +118,9 @@ pub fn run(args: &CompareArgs) -> Result<(), String> {
     let table = compare(&base, &spec).map_err(|e| e.to_string())?;
     let md = table.to_markdown();
     print!("{md}");
-    if let Some(dir) = &args.out {
-        std::fs::create_dir_all(dir)
-            .map_err(|e| format!("{}: cannot create the directory: {e}", dir.display()))?;
+    if let Some(target) = &args.out {
+        let out = OutDir::begin(target).map_err(|e| e.to_string())?;
+        let dir = out.path();
         write_atomic(&dir.join("compare.md"), md.as_bytes()).map_err(|e| e.to_string())?;
         write_atomic(&dir.join("compare.csv"), table.to_csv().as_bytes())
             .map_err(|e| e.to_string())?;
@@ -127,9 +128,10 @@ pub fn run(args: &CompareArgs) -> Result<(), String> {
             .map_err(|e| e.to_string())?;
         write_atomic(&dir.join("curves.csv"), table.to_curves_csv().as_bytes())
             .map_err(|e| e.to_string())?;
+        out.commit().map_err(|e| e.to_string())?;
         println!(
             "wrote compare.md, compare.csv, compare.json, curves.csv in {}",
-            dir.display()
+            target.display()
         );
     }
     Ok(())

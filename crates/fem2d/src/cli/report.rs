@@ -6,6 +6,7 @@ use std::time::Instant;
 
 use clap::Args;
 use fem_cases::figures::{run_cases, write_figures};
+use fem_cases::outdir::OutDir;
 use fem_cases::report::{ReportOptions, write_report};
 
 /// Flags of `fem2d report`.
@@ -58,11 +59,13 @@ pub fn run_report(args: &ReportArgs) -> Result<(), String> {
         command,
         date: humantime::format_rfc3339_seconds(std::time::SystemTime::now()).to_string(),
     };
-    let summary = write_report(&args.out, &options, |what| eprintln!("report: {what}..."))
+    let out = OutDir::begin(&args.out).map_err(|e| e.to_string())?;
+    let summary = write_report(out.path(), &options, |what| eprintln!("report: {what}..."))
         .map_err(|e| e.to_string())?;
+    out.commit().map_err(|e| e.to_string())?;
     println!(
         "wrote {} ({:.1} MB, {} pictures) in {:.1} s; open it in a browser",
-        summary.index.display(),
+        args.out.join("index.html").display(),
         summary.bytes as f64 / 1e6,
         summary.figures.len(),
         summary.wall_seconds

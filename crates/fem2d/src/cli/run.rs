@@ -6,6 +6,7 @@ use std::path::PathBuf;
 
 use clap::Args;
 use fem_cases::files::load_case_or_file;
+use fem_cases::outdir::OutDir;
 use fem_cases::pictures::{
     FieldKind, FramePicture, GifOptions, shared_range, style, time_label, write_gif,
 };
@@ -145,11 +146,14 @@ pub fn run(args: &RunArgs) -> Result<(), String> {
     } else {
         None
     };
+    // Everything goes into a staging directory that replaces --out only once complete.
+    let out = OutDir::begin(&args.out).map_err(|e| e.to_string())?;
+    let dir = out.path().to_path_buf();
     let mut bar = ProgressBar::default();
     let result = run_scene_with(
         &scene,
         &RunOptions {
-            out_dir: Some(args.out.clone()),
+            out_dir: Some(dir.clone()),
             threads: args.threads,
             snapshot_every,
             vtk: args.vtk,
@@ -174,7 +178,7 @@ pub fn run(args: &RunArgs) -> Result<(), String> {
         st.range = shared_range(&[&picture], field);
         st.time_label = Some(time_label(&result, last.time));
         st.wireframe = args.wireframe;
-        let path = args.out.join("final.png");
+        let path = dir.join("final.png");
         fem_render::frame::render(&[picture.view()], &st)
             .and_then(|r| r.image.write_png(&path))
             .map_err(|e| format!("{}: {e}", path.display()))?;
@@ -183,7 +187,7 @@ pub fn run(args: &RunArgs) -> Result<(), String> {
     if args.gif && drawable {
         let frames = write_gif(
             &result,
-            &args.out.join("animation.gif"),
+            &dir.join("animation.gif"),
             &GifOptions {
                 field,
                 delay_centiseconds: delay as u16,
@@ -199,6 +203,7 @@ pub fn run(args: &RunArgs) -> Result<(), String> {
     if args.vtk {
         pictures.push(format!("vtk/run.pvd ({} frames)", result.frame_times.len()));
     }
+    out.commit().map_err(|e| e.to_string())?;
     let s = &result.summary;
     if let Some(w) = &s.time_step_warning {
         eprintln!("warning: {w}");

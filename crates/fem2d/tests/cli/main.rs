@@ -6,6 +6,7 @@ mod commands;
 mod common;
 mod implicit;
 mod mesh;
+mod outputs;
 mod pictures;
 mod report;
 mod run;

@@ -18,7 +18,9 @@ fn listing(dir: &Path) -> Vec<String> {
     names
 }
 
-const OUTPUTS: [&str; 6] = [
+/// The outputs, and the marker that says fem2d wrote the directory (so it may replace it).
+const OUTPUTS: [&str; 7] = [
+    ".fem2d-output",
     "frames.jsonl",
     "mesh.json",
     "probes.csv",
@@ -397,6 +399,7 @@ frames = false
     assert_eq!(
         listing(&first),
         [
+            ".fem2d-output",
             "mesh.json",
             "probes.csv",
             "scene.toml",

@@ -1,0 +1,312 @@
+//! Output directories written as a unit: what a reader finds at `--out` is always one whole
+//! run (the previous one or the new one), never a mix.
+//!
+//! [`OutDir::begin`] takes a lock beside the target (`.NAME.lock`, holding the process id), so
+//! a second writer of the same target fails at once with a message naming the first; it then
+//! creates a fresh staging directory beside the target (`.NAME.partial-PID-N`), where every
+//! output is written. [`OutDir::commit`] moves the staging directory into place by renames:
+//! the previous directory, if any, is first renamed aside (`.NAME.old-PID`), the staging
+//! directory renamed to the target, and the old one removed. Dropping an `OutDir` without
+//! committing (an error, a blow-up the caller does not keep) removes the staging directory,
+//! and [`interrupted`] does the same from a signal handler, so an interrupted run leaves the
+//! previous directory untouched. A process killed outright (SIGKILL, power loss) leaves a lock
+//! whose process is gone and at most one partial directory: the next writer of the same target
+//! removes both, and if the kill fell between the two renames of a commit it first puts the
+//! previous directory back.
+//!
+//! Only fem2d's own output directories are ever replaced: each holds a marker file
+//! ([`MARKER`]); an existing non-empty directory without it is refused, so `--out ~` cannot
+//! delete a home directory.
+
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use fem_scene::SceneError;
+
+/// The file that marks a directory as written by fem2d (and so replaceable by the next run).
+pub const MARKER: &str = ".fem2d-output";
+
+/// Staging directories and locks of the output directories being written, for [`interrupted`].
+/// A commit holds the mutex while it renames, so an interruption never lands mid-commit.
+static ACTIVE: Mutex<Vec<Active>> = Mutex::new(Vec::new());
+
+/// One output directory being written: its staging directory, lock and target.
+type Active = (PathBuf, PathBuf, PathBuf);
+static COUNTER: AtomicU64 = AtomicU64::new(0);
+
+fn io(path: &Path, what: &str, e: std::io::Error) -> SceneError {
+    SceneError::Io(format!("{}: {what}: {e}", path.display()))
+}
+
+/// An output directory being written; see the module docs.
+#[derive(Debug)]
+pub struct OutDir {
+    target: PathBuf,
+    staging: PathBuf,
+    lock: PathBuf,
+    done: bool,
+}
+
+/// Whether process `pid` is running (always assumed where that cannot be asked).
+fn alive(pid: u32) -> bool {
+    if pid == std::process::id() {
+        return true;
+    }
+    if cfg!(target_os = "linux") {
+        Path::new("/proc").join(pid.to_string()).exists()
+    } else {
+        true
+    }
+}
+
+impl OutDir {
+    /// Lock `target`, clean what earlier interrupted writers of it left, check that it is
+    /// fem2d's to replace, and create the staging directory. Errors name the path.
+    pub fn begin(target: &Path) -> Result<OutDir, SceneError> {
+        let target = std::path::absolute(target).map_err(|e| io(target, "bad path", e))?;
+        let bad = || {
+            SceneError::Usage(format!(
+                "--out {}: name a directory (it is replaced as a whole)",
+                target.display()
+            ))
+        };
+        let (Some(parent), Some(name)) = (target.parent(), target.file_name()) else {
+            return Err(bad());
+        };
+        let name = name.to_string_lossy().into_owned();
+        if name == "." || name == ".." {
+            return Err(bad());
+        }
+        std::fs::create_dir_all(parent)
+            .map_err(|e| io(parent, "cannot create the directory", e))?;
+        let lock = parent.join(format!(".{name}.lock"));
+        // Held from taking the lock to recording it, so an interruption in between still finds
+        // (and removes) the lock.
+        let mut active = ACTIVE.lock().unwrap_or_else(|p| p.into_inner());
+        take_lock(&lock, &target)?;
+        let prepared = (|| {
+            clean_leftovers(&target, parent, &name)?;
+            check_replaceable(&target)?;
+            let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+            let staging = parent.join(format!(".{name}.partial-{}-{n}", std::process::id()));
+            std::fs::create_dir(&staging)
+                .map_err(|e| io(&staging, "cannot create the staging directory", e))?;
+            if let Err(e) = std::fs::write(staging.join(MARKER), b"written by fem2d\n") {
+                let _ = std::fs::remove_dir_all(&staging);
+                return Err(io(&staging, "cannot write", e));
+            }
+            Ok(staging)
+        })();
+        match prepared {
+            Ok(staging) => {
+                active.push((staging.clone(), lock.clone(), target.clone()));
+                Ok(OutDir {
+                    target,
+                    staging,
+                    lock,
+                    done: false,
+                })
+            }
+            Err(e) => {
+                let _ = std::fs::remove_file(&lock);
+                Err(e)
+            }
+        }
+    }
+
+    /// Where the outputs are written until [`OutDir::commit`].
+    pub fn path(&self) -> &Path {
+        &self.staging
+    }
+
+    /// Where they end up.
+    pub fn target(&self) -> &Path {
+        &self.target
+    }
+
+    /// Put the staging directory in place of the target and release the lock (see the module
+    /// docs). On an error the previous directory is back in place.
+    pub fn commit(mut self) -> Result<(), SceneError> {
+        let mut active = ACTIVE.lock().unwrap_or_else(|p| p.into_inner());
+        let old = self.lock.with_file_name(format!(
+            ".{}.old-{}",
+            self.target
+                .file_name()
+                .unwrap_or_default()
+                .to_string_lossy(),
+            std::process::id()
+        ));
+        let had_old = self.target.exists();
+        if had_old {
+            std::fs::rename(&self.target, &old)
+                .map_err(|e| io(&self.target, "cannot move the previous output aside", e))?;
+        }
+        if let Err(e) = std::fs::rename(&self.staging, &self.target) {
+            if had_old {
+                let _ = std::fs::rename(&old, &self.target);
+            }
+            return Err(io(&self.target, "cannot move the new output into place", e));
+        }
+        if had_old {
+            let _ = std::fs::remove_dir_all(&old);
+        }
+        let _ = std::fs::remove_file(&self.lock);
+        active.retain(|(s, _, _)| s != &self.staging);
+        self.done = true;
+        Ok(())
+    }
+}
+
+fn clean_leftovers(target: &Path, parent: &Path, name: &str) -> Result<(), SceneError> {
+    let partial = format!(".{name}.partial-");
+    let old = format!(".{name}.old-");
+    let entries = std::fs::read_dir(parent).map_err(|e| io(parent, "cannot list", e))?;
+    // The caller holds the lock, so no live process is writing any of these.
+    let mut olds = Vec::new();
+    let mut partials = Vec::new();
+    for entry in entries.flatten() {
+        let file = entry.file_name().to_string_lossy().into_owned();
+        if file.starts_with(&partial) {
+            partials.push(entry.path());
+        } else if file.starts_with(&old) {
+            olds.push(entry.path());
+        }
+    }
+    // A commit killed between its two renames: the previous output goes back in place.
+    if !target.exists() {
+        if let Some(o) = olds.pop() {
+            std::fs::rename(&o, target)
+                .map_err(|e| io(&o, "cannot restore the previous output", e))?;
+        }
+    }
+    for p in partials.iter().chain(&olds) {
+        std::fs::remove_dir_all(p).map_err(|e| io(p, "cannot remove a leftover", e))?;
+    }
+    Ok(())
+}
+
+fn check_replaceable(t: &Path) -> Result<(), SceneError> {
+    let Ok(meta) = std::fs::symlink_metadata(t) else {
+        return Ok(());
+    };
+    if !meta.is_dir() {
+        return Err(SceneError::Usage(format!(
+            "--out {}: exists and is not a directory",
+            t.display()
+        )));
+    }
+    if t.join(MARKER).is_file() {
+        return Ok(());
+    }
+    let mut entries = std::fs::read_dir(t).map_err(|e| io(t, "cannot list", e))?;
+    match entries.next() {
+        None => Ok(()),
+        Some(first) => Err(SceneError::Usage(format!(
+            "--out {}: holds files fem2d did not write (`{}`); choose a new or empty directory",
+            t.display(),
+            first
+                .map(|e| e.file_name().to_string_lossy().into_owned())
+                .unwrap_or_default()
+        ))),
+    }
+}
+
+/// Take the lock file: the process id is written to a private file first and hard-linked to
+/// the lock's name, so the lock appears with its content in one step (a link fails when the
+/// name exists). A lock whose process is gone (or unreadable and over a minute old) is removed
+/// and the link tried once more.
+fn take_lock(lock: &Path, target: &Path) -> Result<(), SceneError> {
+    let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+    let mine = lock.with_extension(format!("lock.{}-{n}", std::process::id()));
+    std::fs::write(&mine, format!("{}\n", std::process::id()))
+        .map_err(|e| io(&mine, "cannot create the lock", e))?;
+    let result = (|| {
+        for _ in 0..2 {
+            match std::fs::hard_link(&mine, lock) {
+                Ok(()) => return Ok(()),
+                Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
+                    let owner = std::fs::read_to_string(lock)
+                        .ok()
+                        .and_then(|s| s.trim().parse::<u32>().ok());
+                    let old = std::fs::metadata(lock)
+                        .and_then(|m| m.modified())
+                        .ok()
+                        .and_then(|t| t.elapsed().ok())
+                        .is_some_and(|age| age > std::time::Duration::from_secs(60));
+                    let busy = match owner {
+                        Some(pid) => alive(pid),
+                        None => !old,
+                    };
+                    if busy {
+                        return Err(SceneError::Usage(format!(
+                            "{}: another fem2d process (pid {}) is writing it; wait for it or \
+                             choose another --out (if no such process runs, remove {})",
+                            target.display(),
+                            owner.map_or_else(|| "unknown".to_owned(), |p| p.to_string()),
+                            lock.display()
+                        )));
+                    }
+                    let _ = std::fs::remove_file(lock);
+                }
+                Err(e) => return Err(io(lock, "cannot create the lock", e)),
+            }
+        }
+        Err(SceneError::Usage(format!(
+            "{}: another fem2d process is writing it; wait for it or choose another --out",
+            target.display()
+        )))
+    })();
+    let _ = std::fs::remove_file(&mine);
+    result
+}
+
+impl Drop for OutDir {
+    fn drop(&mut self) {
+        if !self.done {
+            let mut active = ACTIVE.lock().unwrap_or_else(|p| p.into_inner());
+            let _ = std::fs::remove_dir_all(&self.staging);
+            let _ = std::fs::remove_file(&self.lock);
+            active.retain(|(s, _, _)| s != &self.staging);
+        }
+    }
+}
+
+/// Remove a staging directory: renamed first, so that files created in it by path from now on
+/// fail instead of keeping it non-empty, then removed.
+fn remove_staging(staging: &Path) {
+    let mut trash = staging.to_path_buf().into_os_string();
+    trash.push(".removing");
+    let trash = PathBuf::from(trash);
+    if std::fs::rename(staging, &trash).is_ok() {
+        let _ = std::fs::remove_dir_all(&trash);
+    } else {
+        let _ = std::fs::remove_dir_all(staging);
+    }
+}
+
+/// Remove the staging directories and locks of every output directory being written, and
+/// return the targets they were for (left as they were). For a signal handler, which then
+/// exits: the lock on the list is kept, so no commit starts afterwards.
+pub fn interrupted() -> Vec<PathBuf> {
+    let active = ACTIVE.lock().unwrap_or_else(|p| p.into_inner());
+    let mut targets = Vec::new();
+    for (staging, lock, target) in active.iter() {
+        remove_staging(staging);
+        let _ = std::fs::remove_file(lock);
+        targets.push(target.clone());
+    }
+    // The interrupted threads keep running until the process exits, and one may be creating
+    // a file or a subdirectory in the staging directory right now (recreating it): look again
+    // a few times.
+    for _ in 0..5 {
+        std::thread::sleep(std::time::Duration::from_millis(2));
+        for (staging, _, _) in active.iter() {
+            if staging.exists() {
+                remove_staging(staging);
+            }
+        }
+    }
+    std::mem::forget(active);
+    targets
+}
