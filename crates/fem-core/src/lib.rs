@@ -9,7 +9,8 @@
 //! - [`energy`]: the [`Energy`](energy::Energy) trait and five energies (`stvk`,
 //!   `corotational`, `neo-hookean`, `stable-neo-hookean`, `linear`), each seeing only `F`.
 //! - [`element`]: the Tri3 element (`Dm^-1`, rest area, chain rule from `P` to nodal forces).
-//! - [`mesh`]: a validated mesh with rest data, adjacency and lumped masses.
+//! - [`mesh`]: a validated mesh with rest data, adjacency and lumped masses; repeated
+//!   triangles, edges of more than two triangles and overlapping triangles are refused.
 //! - [`partition`]: the chunking that makes the parallel scatter deterministic.
 //! - [`assembly`]: energy, forces and stiffness; serial reference and bit-identical parallel
 //!   paths.
@@ -48,6 +49,7 @@ pub mod fd;
 pub mod material;
 pub mod math;
 pub mod mesh;
+mod overlap;
 pub mod partition;
 pub mod polar;
 pub mod simd;

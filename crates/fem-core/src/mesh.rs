@@ -8,6 +8,7 @@
 
 use crate::element::{ElementError, ElementTolerance, Tri3};
 use crate::math::{Real, Vec2};
+use crate::overlap::Problem;
 use crate::partition::ScatterPlan;
 
 /// Why a mesh is rejected.
@@ -60,6 +61,43 @@ pub enum MeshError {
         indices: [u32; 3],
         /// What is wrong with it.
         source: ElementError,
+    },
+    /// Two triangles have the same three vertices.
+    #[error(
+        "triangles[{second}] = {indices:?} repeats triangles[{first}] (the same vertices): it would count that area twice"
+    )]
+    RepeatedTriangle {
+        /// The earlier triangle.
+        first: usize,
+        /// The repeat.
+        second: usize,
+        /// The repeat's vertex indices.
+        indices: [u32; 3],
+    },
+    /// An edge borders more than two triangles.
+    #[error(
+        "the edge between vertices {} and {} borders triangles[{}], triangles[{}] and triangles[{}]: an edge may border at most two",
+        edge[0], edge[1], triangles[0], triangles[1], triangles[2]
+    )]
+    EdgeOfThree {
+        /// The edge's vertices.
+        edge: [u32; 2],
+        /// Three of the triangles on it.
+        triangles: [usize; 3],
+    },
+    /// The interiors of two triangles intersect.
+    #[error(
+        "triangles[{second}] = {second_indices:?} overlaps triangles[{first}] = {first_indices:?}: triangles may touch only along shared edges and at vertices"
+    )]
+    Overlap {
+        /// The earlier triangle.
+        first: usize,
+        /// Its vertex indices.
+        first_indices: [u32; 3],
+        /// The later triangle.
+        second: usize,
+        /// Its vertex indices.
+        second_indices: [u32; 3],
     },
     /// A vertex belongs to no triangle.
     #[error("vertices[{0}] is used by no triangle (it would have zero mass)")]
@@ -216,6 +254,27 @@ impl Mesh {
         }
         if let Some(v) = used.iter().position(|&u| !u) {
             return Err(MeshError::UnreferencedVertex(v));
+        }
+        match crate::overlap::check(&vertices, &triangles) {
+            None => {}
+            Some(Problem::Repeated { first, second }) => {
+                return Err(MeshError::RepeatedTriangle {
+                    first,
+                    second,
+                    indices: triangles[second],
+                });
+            }
+            Some(Problem::EdgeOfThree { edge, triangles }) => {
+                return Err(MeshError::EdgeOfThree { edge, triangles });
+            }
+            Some(Problem::Overlap { first, second }) => {
+                return Err(MeshError::Overlap {
+                    first,
+                    first_indices: triangles[first],
+                    second,
+                    second_indices: triangles[second],
+                });
+            }
         }
         let adjacency = VertexAdjacency::build(n, &triangles);
         let plan = ScatterPlan::new(n, &triangles, &adjacency);

@@ -91,6 +91,8 @@ pub fn build_mesh(scene: &LoadedScene, source: &dyn MeshSource) -> Result<Mesh, 
     let spec = &scene.scene.mesh;
     let mesh_err =
         |e: fem_mesh::MeshError| SceneError::Mesh(format!("{}: mesh: {e}", scene.origin));
+    // Where the triangles came from, for the final checks' message.
+    let mut from = String::from("mesh");
     let mut mesh2: Mesh2 = match spec.kind.unwrap_or(MeshKind::Rectangle) {
         MeshKind::Rectangle => rectangle(&RectangleParams {
             origin: spec.origin.unwrap_or([0.0, 0.0]),
@@ -103,6 +105,7 @@ pub fn build_mesh(scene: &LoadedScene, source: &dyn MeshSource) -> Result<Mesh, 
         .map_err(mesh_err)?,
         MeshKind::File => {
             let (name, bytes) = read_named(scene, source)?;
+            from = format!("mesh.path = {name}");
             fem_mesh::io::parse_mesh_json(&bytes, Path::new(&name)).map_err(mesh_err)?
         }
         MeshKind::Model | MeshKind::Body => match mesh_pipeline(scene, source)? {
@@ -122,7 +125,7 @@ pub fn build_mesh(scene: &LoadedScene, source: &dyn MeshSource) -> Result<Mesh, 
         .map(|t| t.map(|i| i as u32))
         .collect();
     Mesh::new(vertices, triangles)
-        .map_err(|e| SceneError::Mesh(format!("{}: mesh: {e}", scene.origin)))
+        .map_err(|e| SceneError::Mesh(format!("{}: {from}: {e}", scene.origin)))
 }
 
 /// The mesh pipeline's output (every stage, for Figure 1) for a scene whose mesh comes from a

@@ -3,7 +3,7 @@
 //! run, every built-in case, the energy / solver / thread / `--set` flags, bad input ending with
 //! one `error:` line and no output file, and a run that blows up.
 
-use crate::common::{arg, fem2d, json, read, run_ok, scratch};
+use crate::common::{arg, fem2d, json, one_line_error, read, run_ok, scratch};
 use std::path::Path;
 
 use serde_json::Value;
@@ -646,4 +646,60 @@ fn instruction_set_cap_changes_nothing_but_speed_and_bad_values_are_rejected() {
     assert_eq!(err.lines().count(), 1, "{err}");
     assert!(err.starts_with("error: FEM2D_SIMD = `sse9`"), "{err}");
     assert!(listing(&bad_dir).is_empty());
+}
+
+/// A mesh file whose triangles repeat, fold over a neighbour, overlap or put three triangles on
+/// one edge would double mass and stiffness: each is one error line naming the file and the
+/// triangles, and nothing is written.
+#[test]
+fn mesh_files_with_repeated_folded_or_overlapping_triangles_are_refused() {
+    let dir = scratch("bad-topology");
+    let strip = r#"[[0,0],[1,0],[2,0],[0,1],[1,1],[2,1]"#;
+    let good = "[0,1,4],[0,4,3],[1,2,5],[1,5,4]";
+    let cases = [
+        // The last triangle again, its vertices rotated.
+        (
+            "repeated",
+            format!("{strip}]"),
+            format!("{good},[4,1,5]"),
+            "triangles[4] = [4, 1, 5] repeats triangles[3]",
+        ),
+        // A third triangle on the edge 1-4, beyond vertex 7 = (1.2, 0.5), inside the strip.
+        (
+            "three",
+            format!("{strip},[1.2,0.5]]"),
+            format!("{good},[1,6,4]"),
+            "borders triangles[0], triangles[3] and triangles[4]",
+        ),
+        // A triangle far from the others' edges but on top of them.
+        (
+            "overlap",
+            format!("{strip},[0.3,0.2],[0.6,0.2],[0.45,0.5]]"),
+            format!("{good},[6,7,8]"),
+            "triangles[4] = [6, 7, 8] overlaps triangles[0]",
+        ),
+    ];
+    for (name, vertices, triangles, want) in cases {
+        let mesh = dir.join(format!("{name}.json"));
+        std::fs::write(
+            &mesh,
+            format!(r#"{{"vertices": {vertices}, "triangles": [{triangles}]}}"#),
+        )
+        .unwrap();
+        let scene = dir.join(format!("{name}.toml"));
+        std::fs::write(
+            &scene,
+            format!(
+                "name = \"{name}\"\nenergy = \"stvk\"\n[mesh]\nkind = \"file\"\npath = \"{name}.json\"\n\
+                 [material]\nyoungs_modulus = 1e4\npoisson_ratio = 0.3\ndensity = 1.0\n\
+                 [solver]\ndt = 1e-3\nsteps = 2\n"
+            ),
+        )
+        .unwrap();
+        let out = dir.join(format!("{name}-out"));
+        let err = one_line_error(&["run", arg(&scene), "--out", arg(&out), "-q"]);
+        assert!(err.contains(&format!("{name}.json")), "{err}");
+        assert!(err.contains(want), "{name}: {err}");
+        assert!(!out.exists(), "{name}");
+    }
 }
