@@ -113,6 +113,10 @@ struct Delaunay {
 }
 
 fn delaunay(points: &[[f64; 2]]) -> Result<Delaunay> {
+    crate::guard::guarded("alpha shape", || delaunay_unguarded(points))?
+}
+
+fn delaunay_unguarded(points: &[[f64; 2]]) -> Result<Delaunay> {
     if let Some((i, p)) = points
         .iter()
         .enumerate()

@@ -32,6 +32,7 @@ pub mod alpha;
 pub mod body;
 pub mod camera;
 pub mod error;
+mod guard;
 pub mod io;
 pub mod load;
 pub mod pipeline;

@@ -68,6 +68,14 @@ impl TriangulateReport {
 /// quality measures, not of the mesh).
 const CHECK_SLACK: f64 = 1e-9;
 
+/// Relative area below which a triangle is degenerate: fem-core's default
+/// `ElementTolerance::relative_area`, so every mesh written here is one the solvers accept.
+const DEGENERATE: f64 = 1e-10;
+
+/// Smallest polygon area, relative to the square of its extent, that is meshed: a 1 m outline
+/// 10 nm thick is below it. Real outlines are far above (the built-in body: 0.17).
+const THIN: f64 = 1e-8;
+
 /// Triangulates the polygons (outer rings counter-clockwise, holes clockwise, all valid and
 /// mutually disjoint) into one mesh, refined per `params`.
 pub fn triangulate(
@@ -124,6 +132,44 @@ pub fn triangulate(
             "no polygon to triangulate",
         ));
     }
+    // A (nearly) collinear outline: nothing but slivers can mesh it, however long the
+    // refinement runs. Refused per polygon, by its area against the square of its extent
+    // (after the crossing-edges check: a bow tie's area is zero too).
+    let mut thin = None;
+    for (k, polygon) in polygons.iter().enumerate() {
+        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        for p in &polygon.outer {
+            lo = [lo[0].min(p[0]), lo[1].min(p[1])];
+            hi = [hi[0].max(p[0]), hi[1].max(p[1])];
+        }
+        let extent2 = (hi[0] - lo[0]).powi(2) + (hi[1] - lo[1]).powi(2);
+        let area = polygon.area();
+        if thin.is_none()
+            && area.partial_cmp(&(THIN * extent2)) != Some(std::cmp::Ordering::Greater)
+        {
+            thin = Some(MeshError::invalid(
+                "triangulate",
+                format!(
+                    "polygon {k} is (nearly) collinear: area {area:.3e} over an extent of {:.3e} (ratio {:.1e}, at least {THIN:.0e} needed); check the model and the view",
+                    extent2.sqrt(),
+                    area / extent2
+                ),
+            ));
+        }
+    }
+    crate::guard::guarded("triangulate", || {
+        mesh_rings(vertices, edges, smallest_input_angle_deg, params, thin)
+    })?
+}
+
+/// The triangulation and refinement proper (spade), run under [`crate::guard::guarded`].
+fn mesh_rings(
+    vertices: Vec<Point2<f64>>,
+    edges: Vec<[usize; 2]>,
+    smallest_input_angle_deg: f64,
+    params: &TriangulateParams,
+    thin: Option<MeshError>,
+) -> Result<(Mesh2, TriangulateReport)> {
     let mut conflicts = 0usize;
     let mut cdt: ConstrainedDelaunayTriangulation<Point2<f64>> =
         ConstrainedDelaunayTriangulation::try_bulk_load_cdt(vertices, edges, |_| conflicts += 1)
@@ -133,6 +179,9 @@ pub fn triangulate(
             "triangulate",
             format!("{conflicts} boundary edges intersect (the polygon is not simple)"),
         ));
+    }
+    if let Some(e) = thin {
+        return Err(e);
     }
     let initial = cdt.num_vertices();
     let mut refinement = RefinementParameters::<f64>::new()
@@ -169,6 +218,28 @@ pub fn triangulate(
             "triangulate",
             "the polygon encloses no triangle",
         ));
+    }
+    // The mesher never writes a triangle below the degeneracy threshold of the FEM element
+    // (fem-core's `ElementTolerance`: |area| <= 1e-10 x longest edge^2): such input is (nearly)
+    // collinear, and no refinement can mesh it.
+    for t in 0..mesh.triangles.len() {
+        let c = mesh.corners(t);
+        let longest = (0..3)
+            .map(|k| {
+                let (a, b) = (c[k], c[(k + 1) % 3]);
+                (b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2)
+            })
+            .fold(0.0f64, f64::max);
+        let area = mesh.signed_area(t);
+        if area <= DEGENERATE * longest {
+            return Err(MeshError::invalid(
+                "triangulate",
+                format!(
+                    "triangle {t} would be degenerate (area {area:.3e}, longest edge {:.3e}): the outline is (nearly) collinear or too thin to mesh; check the model and the view",
+                    longest.sqrt()
+                ),
+            ));
+        }
     }
     let mut min_angle = 180.0f64;
     let mut max_area = 0.0f64;

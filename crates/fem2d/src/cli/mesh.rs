@@ -176,7 +176,8 @@ pub fn run(args: &MeshArgs) -> Result<(), String> {
             args.min_angle
         );
     }
-    let out = mesh_surface(surface, &params).map_err(|e| e.to_string())?;
+    // Pipeline errors name the stage; the model is named here.
+    let out = mesh_surface(surface, &params).map_err(|e| format!("{source}: {e}"))?;
     print_summary(&out);
 
     if !out.triangulate_report.quality_met() {

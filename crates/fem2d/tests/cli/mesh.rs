@@ -77,7 +77,38 @@ fn bad_input_is_a_one_line_error_without_output() {
     let flat = dir.join("flat.obj");
     std::fs::write(&flat, "v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n").unwrap();
     let missing = dir.join("missing.stl");
+    // 200 points along a 3D line with 1e-9 m of noise: nearly collinear in every view (before,
+    // 50,001 zero-angle triangles were written after a warning).
+    let line = dir.join("line.obj");
+    let mut text = String::new();
+    let mut r = 0x9e37_79b9_u64;
+    let mut noise = || {
+        r = r
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((r >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 2e-9
+    };
+    for i in 0..200 {
+        let t = i as f64 * 0.01;
+        text.push_str(&format!(
+            "v {} {} {}\n",
+            t + noise(),
+            0.5 * t + noise(),
+            t / 3.0 + noise()
+        ));
+    }
+    text.push_str("f 1 2 3\n");
+    std::fs::write(&line, text).unwrap();
     let cases: Vec<(Vec<&str>, &str)> = vec![
+        (
+            vec![arg(&line), "--epsilon", "0.001", "--view", "front"],
+            "line.obj: triangulate: polygon 0 is (nearly) collinear",
+        ),
+        (
+            vec![arg(&line), "--epsilon", "0.001", "--view", "top"],
+            "(nearly) collinear",
+        ),
+        (vec![arg(&line), "--epsilon", "0.001"], "(nearly) collinear"),
         (vec![arg(&empty)], "empty.obj: contents: no vertices"),
         (
             vec![arg(&nan)],
