@@ -30,6 +30,10 @@ use crate::files::FileSource;
 
 pub use fem_scene::run::{ProbeSummary, RunResult, Snapshot, Summary};
 
+/// Most rayon threads a run may ask for (`--threads`): far above any machine this runs on, and
+/// low enough that a typo cannot make the pool allocate thousands of stacks.
+pub const MAX_THREADS: usize = 1024;
+
 /// How to run (not part of the scene).
 #[derive(Clone, Debug, Default)]
 pub struct RunOptions {
@@ -86,6 +90,9 @@ pub fn run_scene_with(
     match options.threads {
         None => go(),
         Some(0) => Err(SceneError::Usage("--threads 0: must be >= 1".into())),
+        Some(n) if n > MAX_THREADS => Err(SceneError::Usage(format!(
+            "--threads {n}: must be at most {MAX_THREADS}"
+        ))),
         Some(n) => rayon::ThreadPoolBuilder::new()
             .num_threads(n)
             .build()

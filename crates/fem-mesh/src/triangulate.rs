@@ -68,6 +68,10 @@ impl TriangulateReport {
 /// quality measures, not of the mesh).
 const CHECK_SLACK: f64 = 1e-9;
 
+/// Most Steiner points a refinement may be allowed (`--max-steiner`, `mesh.max_steiner`): ten
+/// million points is a mesh of about 20 million triangles.
+pub const MAX_STEINER_POINTS: usize = 10_000_000;
+
 /// Relative area below which a triangle is degenerate: fem-core's default
 /// `ElementTolerance::relative_area`, so every mesh written here is one the solvers accept.
 const DEGENERATE: f64 = 1e-10;
@@ -89,6 +93,15 @@ pub fn triangulate(
                 format!("max area must be positive and finite, got {a}"),
             ));
         }
+    }
+    if params.max_steiner_points > MAX_STEINER_POINTS {
+        return Err(MeshError::invalid(
+            "triangulate",
+            format!(
+                "max Steiner points {} is above the limit {MAX_STEINER_POINTS}",
+                params.max_steiner_points
+            ),
+        ));
     }
     if !(params.min_angle_deg.is_finite() && (0.0..60.0).contains(&params.min_angle_deg)) {
         return Err(MeshError::invalid(

@@ -15,7 +15,7 @@ pub enum SolverError {
         /// The rejected value, formatted.
         value: String,
         /// What the value must satisfy.
-        rule: &'static str,
+        rule: String,
     },
     /// A vertex index is out of range.
     #[error("{field}: vertex index {index} is out of range (mesh has {n_vertices} vertices)")]
@@ -124,11 +124,15 @@ pub enum SolverError {
 
 impl SolverError {
     /// Shorthand for [`SolverError::InvalidParameter`].
-    pub fn invalid(field: impl Into<String>, value: impl ToString, rule: &'static str) -> Self {
+    pub fn invalid(
+        field: impl Into<String>,
+        value: impl ToString,
+        rule: impl Into<String>,
+    ) -> Self {
         SolverError::InvalidParameter {
             field: field.into(),
             value: value.to_string(),
-            rule,
+            rule: rule.into(),
         }
     }
 }
@@ -160,11 +164,24 @@ pub(crate) fn check_non_negative(field: &str, value: Real) -> Result<(), SolverE
 }
 
 /// `Ok` when `n >= 1`.
-pub(crate) fn check_count(field: &str, n: usize) -> Result<(), SolverError> {
-    if n >= 1 {
+pub(crate) fn check_count(field: &str, n: usize, max: usize) -> Result<(), SolverError> {
+    if n == 0 {
+        Err(SolverError::invalid(field, n, "must be at least 1"))
+    } else {
+        check_at_most(field, n, max)
+    }
+}
+
+/// `Ok` when `n <= max`.
+pub(crate) fn check_at_most(field: &str, n: usize, max: usize) -> Result<(), SolverError> {
+    if n <= max {
         Ok(())
     } else {
-        Err(SolverError::invalid(field, n, "must be at least 1"))
+        Err(SolverError::invalid(
+            field,
+            n,
+            format!("must be at most {max} (fem_solvers::limits)"),
+        ))
     }
 }
 

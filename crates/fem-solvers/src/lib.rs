@@ -104,6 +104,7 @@ mod error;
 pub mod explicit;
 pub mod implicit;
 mod kernel;
+pub mod limits;
 pub mod model;
 pub mod newton;
 pub mod position_based;

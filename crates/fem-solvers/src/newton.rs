@@ -41,7 +41,8 @@ use fem_core::energy::Energy;
 use fem_core::math::{Real, Vec2};
 use fem_core::mesh::Mesh;
 
-use crate::error::{SolverError, check_count};
+use crate::error::{SolverError, check_at_most, check_count};
+use crate::limits;
 use crate::stopwatch::Stopwatch;
 
 /// Convergence and line-search settings of Newton's method.
@@ -86,7 +87,16 @@ impl NewtonParams {
                 "must lie in the open interval (0, 1) (relative to the force scale)",
             ));
         }
-        check_count(&format!("{prefix}.max_iterations"), self.max_iterations)
+        check_count(
+            &format!("{prefix}.max_iterations"),
+            self.max_iterations,
+            limits::MAX_NEWTON_ITERATIONS,
+        )?;
+        check_at_most(
+            &format!("{prefix}.max_halvings"),
+            self.max_halvings,
+            limits::MAX_HALVINGS,
+        )
     }
 }
 

@@ -72,6 +72,7 @@ use crate::error::{
 use crate::kernel::{
     ELEMENT_CHUNK, Inversion, PackedElement, VERTEX_CHUNK, deformation_gradient, energy_gradients,
 };
+use crate::limits;
 use crate::model::Model;
 use crate::registry::{Capabilities, Clock, Solver};
 use crate::report::StepReport;
@@ -219,8 +220,12 @@ impl PbdParams {
     pub fn validate_as(&self, prefix: &str) -> Result<(), SolverError> {
         let field = |name: &str| format!("{prefix}.{name}");
         check_positive(&field("dt"), self.dt)?;
-        check_count(&field("substeps"), self.substeps)?;
-        check_count(&field("iterations"), self.iterations)?;
+        check_count(&field("substeps"), self.substeps, limits::MAX_SUBSTEPS)?;
+        check_count(
+            &field("iterations"),
+            self.iterations,
+            limits::MAX_ITERATIONS,
+        )?;
         if !(self.stiffness > 0.0 && self.stiffness <= 1.0) {
             return Err(SolverError::invalid(
                 field("stiffness"),
@@ -244,8 +249,12 @@ impl XpbdParams {
     pub fn validate_as(&self, prefix: &str) -> Result<(), SolverError> {
         let field = |name: &str| format!("{prefix}.{name}");
         check_positive(&field("dt"), self.dt)?;
-        check_count(&field("substeps"), self.substeps)?;
-        check_count(&field("iterations"), self.iterations)?;
+        check_count(&field("substeps"), self.substeps, limits::MAX_SUBSTEPS)?;
+        check_count(
+            &field("iterations"),
+            self.iterations,
+            limits::MAX_ITERATIONS,
+        )?;
         check_non_negative(&field("compliance"), self.compliance)?;
         check_non_negative(&field("damping"), self.damping)?;
         check_relaxation(&field("relaxation"), self.relaxation)?;

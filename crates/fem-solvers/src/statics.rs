@@ -33,8 +33,9 @@ use fem_core::energy::Energy;
 use fem_core::math::{Real, Vec2};
 
 use crate::commit::{Kinematic, StepEnd};
-use crate::error::{SolverError, check_count};
+use crate::error::{SolverError, check_at_most, check_count};
 use crate::implicit::external_load;
+use crate::limits;
 use crate::model::Model;
 use crate::newton::{NewtonParams, NewtonReport, NewtonSolver, Potential};
 use crate::registry::{Capabilities, Clock, Solver};
@@ -78,7 +79,16 @@ impl StaticParams {
 
     /// Check every field; errors name `<prefix>.<field>` (Newton's too: `<prefix>.tolerance`).
     pub fn validate_as(&self, prefix: &str) -> Result<(), SolverError> {
-        check_count(&format!("{prefix}.load_steps"), self.load_steps)?;
+        check_count(
+            &format!("{prefix}.load_steps"),
+            self.load_steps,
+            limits::MAX_LOAD_STEPS,
+        )?;
+        check_at_most(
+            &format!("{prefix}.max_bisections"),
+            self.max_bisections,
+            limits::MAX_BISECTIONS,
+        )?;
         self.newton.validate_as(prefix)
     }
 }

@@ -41,6 +41,12 @@ fn check_threads(threads: Option<usize>) -> Result<(), String> {
     if threads == Some(0) {
         return Err("--threads 0: must be >= 1".into());
     }
+    if let Some(n) = threads.filter(|&n| n > fem_cases::run::MAX_THREADS) {
+        return Err(format!(
+            "--threads {n}: must be at most {}",
+            fem_cases::run::MAX_THREADS
+        ));
+    }
     Ok(())
 }
 

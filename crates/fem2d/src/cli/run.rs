@@ -139,6 +139,13 @@ pub fn run(args: &RunArgs) -> Result<(), String> {
     let gif_every = args
         .gif_every
         .unwrap_or_else(|| recorded.div_ceil(120).max(1) as usize);
+    // Every GIF frame is kept in memory until the run ends, then drawn and encoded.
+    let gif_frames = (recorded as usize).div_ceil(gif_every);
+    if args.gif && gif_frames > MAX_GIF_FRAMES {
+        return Err(format!(
+            "--gif-every {gif_every}: the animation would have {gif_frames} frames; at most {MAX_GIF_FRAMES} (raise --gif-every)"
+        ));
+    }
     let snapshot_every = if args.gif {
         Some(gif_every)
     } else if args.png {
@@ -278,6 +285,9 @@ pub fn run(args: &RunArgs) -> Result<(), String> {
         None => Ok(()),
     }
 }
+
+/// Most frames of an animated GIF (`--gif`): about 20 s at the default 50 ms per frame.
+pub const MAX_GIF_FRAMES: usize = 400;
 
 /// `x` with `digits` decimals, or in scientific notation when it is too large for that to be
 /// readable (a blown-up run's numbers have a hundred digits).

@@ -539,6 +539,56 @@ fn bad_input_is_one_error_line_and_no_output() {
             vec!["solver.kind", "euler"],
         ),
         (vec!["case-a", "--threads", "0"], vec!["--threads"]),
+        // Upper bounds (fem_solvers::limits, fem_cases::run::MAX_THREADS, MAX_GIF_FRAMES):
+        // each a one-line error naming the field, never a hang or an allocation failure.
+        (
+            vec!["case-a", "--threads", "100000"],
+            vec!["--threads 100000: must be at most 1024"],
+        ),
+        (
+            vec![
+                "case-a",
+                "--solver",
+                "xpbd",
+                "--set",
+                "solver.iterations=4294967296",
+            ],
+            vec!["solver.iterations = 4294967296", "at most 100000"],
+        ),
+        (
+            vec![
+                "case-a",
+                "--solver",
+                "pbd",
+                "--set",
+                "solver.substeps=1000000000",
+            ],
+            vec!["solver.substeps = 1000000000", "at most 10000"],
+        ),
+        (
+            vec![
+                "case-a",
+                "--solver",
+                "static",
+                "--set",
+                "solver.load_steps=1000000000",
+            ],
+            vec!["solver.load_steps = 1000000000", "at most 1000000"],
+        ),
+        (
+            vec![
+                "case-a",
+                "--solver",
+                "implicit",
+                "--set",
+                "solver.max_iterations=100000000",
+            ],
+            vec!["solver.max_iterations = 100000000"],
+        ),
+        (
+            vec!["case-a", "--gif", "--gif-every", "1", "--steps", "100000"],
+            vec!["--gif-every 1", "10002 frames", "at most 400"],
+        ),
     ];
     for (k, (extra, needles)) in cases.iter().enumerate() {
         let out_dir = dir.join(format!("out-{k}"));
