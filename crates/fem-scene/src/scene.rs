@@ -673,6 +673,18 @@ impl LoadedScene {
             for (k, p) in o.polygon.iter().enumerate() {
                 point(&format!("{f}.polygon.{k}"), *p)?;
             }
+            let poly: Vec<fem_core::math::Vec2> = o
+                .polygon
+                .iter()
+                .map(|p| fem_core::math::Vec2::new(p[0], p[1]))
+                .collect();
+            if let Some((i, j)) = fem_solvers::contact::first_crossing(&poly) {
+                return Err(self.error(
+                    &format!("{f}.polygon"),
+                    format!("(edges {i} and {j} cross)"),
+                    "must be a simple polygon (no two edges may cross or touch)",
+                ));
+            }
             let area = signed_area(&o.polygon);
             if area.is_nan() || area <= 0.0 {
                 return Err(self.error(

@@ -151,10 +151,77 @@ pub struct Obstacle {
     inertia: Real,
 }
 
+/// `(b - a) x (c - a)`.
+fn orient(a: Vec2, b: Vec2, c: Vec2) -> Real {
+    (b - a).perp(&(c - a))
+}
+
+/// The first pair of non-adjacent edges `(i, j)`, `i < j`, of a closed polygon that intersect
+/// (touching counts), or `None` for a simple polygon. Edge `k` runs from vertex `k` to `k + 1`.
+/// Quadratic in the vertex count, which is small for obstacles.
+pub fn first_crossing(polygon: &[Vec2]) -> Option<(usize, usize)> {
+    let n = polygon.len();
+    let scale = polygon.iter().map(|p| p.norm()).fold(1.0, Real::max);
+    let eps = 1e-12 * scale * scale;
+    let sign = |v: Real| {
+        if v > eps {
+            1
+        } else if v < -eps {
+            -1
+        } else {
+            0
+        }
+    };
+    let on_segment = |a: Vec2, b: Vec2, p: Vec2| {
+        p.x >= a.x.min(b.x) && p.x <= a.x.max(b.x) && p.y >= a.y.min(b.y) && p.y <= a.y.max(b.y)
+    };
+    for i in 0..n {
+        let (a, b) = (polygon[i], polygon[(i + 1) % n]);
+        for j in i + 1..n {
+            // Adjacent edges share a vertex by construction.
+            if j == i + 1 || (i == 0 && j == n - 1) {
+                continue;
+            }
+            let (c, d) = (polygon[j], polygon[(j + 1) % n]);
+            let (d1, d2) = (sign(orient(a, b, c)), sign(orient(a, b, d)));
+            let (d3, d4) = (sign(orient(c, d, a)), sign(orient(c, d, b)));
+            let proper = d1 * d2 < 0 && d3 * d4 < 0;
+            let touching = (d1 == 0 && on_segment(a, b, c))
+                || (d2 == 0 && on_segment(a, b, d))
+                || (d3 == 0 && on_segment(c, d, a))
+                || (d4 == 0 && on_segment(c, d, b));
+            if proper || touching {
+                return Some((i, j));
+            }
+        }
+    }
+    None
+}
+
+/// Whether `p` lies strictly inside the closed polygon (even-odd rule), at least `margin` away
+/// from its boundary.
+pub(crate) fn strictly_inside(polygon: &[Vec2], p: Vec2, margin: Real) -> bool {
+    let n = polygon.len();
+    let mut inside = false;
+    for k in 0..n {
+        let (a, b) = (polygon[k], polygon[(k + 1) % n]);
+        // Distance to the edge.
+        let ab = b - a;
+        let t = ((p - a).dot(&ab) / ab.norm_squared().max(Real::MIN_POSITIVE)).clamp(0.0, 1.0);
+        if (a + ab * t - p).norm() <= margin {
+            return false;
+        }
+        if (a.y > p.y) != (b.y > p.y) && p.x < a.x + (p.y - a.y) / (b.y - a.y) * (b.x - a.x) {
+            inside = !inside;
+        }
+    }
+    inside
+}
+
 impl Obstacle {
     /// From a counter-clockwise polygon in world coordinates at `t = 0`. Fails (naming
-    /// `obstacles[index]`) on fewer than 3 vertices, non-finite coordinates, clockwise order or
-    /// zero area, and on a non-positive dynamic mass.
+    /// `obstacles[index]`) on fewer than 3 vertices, non-finite coordinates, clockwise order,
+    /// zero area or crossing edges, and on a non-positive dynamic mass.
     pub fn new(
         index: usize,
         polygon: &[Vec2],
@@ -172,6 +239,19 @@ impl Obstacle {
             .position(|p| !(p.x.is_finite() && p.y.is_finite()))
         {
             return Err(err(format!("polygon[{k}] is not finite")));
+        }
+        if let Some((i, j)) = first_crossing(polygon) {
+            return Err(err(format!(
+                "polygon edges {i} ([{}, {}] to [{}, {}]) and {j} ([{}, {}] to [{}, {}]) cross: the polygon must be simple",
+                polygon[i].x,
+                polygon[i].y,
+                polygon[(i + 1) % polygon.len()].x,
+                polygon[(i + 1) % polygon.len()].y,
+                polygon[j].x,
+                polygon[j].y,
+                polygon[(j + 1) % polygon.len()].x,
+                polygon[(j + 1) % polygon.len()].y,
+            )));
         }
         // Shoelace area, centroid and polar second moment about the origin.
         let mut a2 = 0.0;

@@ -27,6 +27,9 @@ pub enum SolverError {
         /// Number of mesh vertices.
         n_vertices: usize,
     },
+    /// The ground is unusable (the body starts below it).
+    #[error("ground: {0}")]
+    Ground(String),
     /// An obstacle polygon is unusable.
     #[error("obstacles[{index}]: {reason}")]
     Obstacle {

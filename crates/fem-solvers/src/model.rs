@@ -210,9 +210,42 @@ impl<E: Energy> Model<E> {
     }
 
     /// Set (or, with `None`, remove) the ground half-space.
+    ///
+    /// Fails when a rest vertex lies below the ground (by more than `1e-9` times the mesh's
+    /// size): the penalty would fling it out at the first step.
     pub fn set_ground(&mut self, ground: Option<Ground>) -> Result<&mut Self, SolverError> {
-        self.ground = ground.map(Ground::validated).transpose()?;
+        let ground = ground.map(Ground::validated).transpose()?;
+        if let Some(g) = &ground {
+            let tol = 1e-9 * self.extent();
+            let below = self
+                .mesh
+                .vertices()
+                .iter()
+                .enumerate()
+                .map(|(v, p)| (v, (p - g.point).dot(&g.normal)))
+                .filter(|&(_, d)| d < -tol)
+                .min_by(|a, b| a.1.total_cmp(&b.1));
+            if let Some((v, d)) = below {
+                let p = self.mesh.vertices()[v];
+                return Err(SolverError::Ground(format!(
+                    "vertex {v} at [{}, {}] is {:.3e} m below the ground at t = 0 (the body must start on or above it)",
+                    p.x, p.y, -d
+                )));
+            }
+        }
+        self.ground = ground;
         Ok(self)
+    }
+
+    /// The largest coordinate extent of the rest mesh, m (at least 1e-300).
+    fn extent(&self) -> Real {
+        let v = self.mesh.vertices();
+        let (mut lo, mut hi) = (v[0], v[0]);
+        for p in v {
+            lo = lo.inf(p);
+            hi = hi.sup(p);
+        }
+        (hi - lo).max().max(1e-300)
     }
 
     /// Add a rigid polygonal obstacle (counter-clockwise world polygon at `t = 0`); returns its
@@ -223,7 +256,32 @@ impl<E: Energy> Model<E> {
         motion: ObstacleMotion,
     ) -> Result<usize, SolverError> {
         let index = self.obstacles.len();
-        self.obstacles.push(Obstacle::new(index, polygon, motion)?);
+        let obstacle = Obstacle::new(index, polygon, motion)?;
+        // Overlap with the body at t = 0: a vertex inside the obstacle, or an obstacle corner
+        // inside a triangle. Touching (within 1e-9 of the mesh size) is fine.
+        let margin = 1e-9 * self.extent();
+        let vertices = self.mesh.vertices();
+        let overlap = |reason: String| SolverError::Obstacle { index, reason };
+        if let Some(v) = vertices
+            .iter()
+            .position(|&p| crate::contact::strictly_inside(polygon, p, margin))
+        {
+            return Err(overlap(format!(
+                "overlaps the body at t = 0: vertex {v} at [{}, {}] lies inside it; start it apart from the body",
+                vertices[v].x, vertices[v].y
+            )));
+        }
+        for (k, &c) in polygon.iter().enumerate() {
+            if let Some(t) = self.mesh.triangles().iter().position(|tri| {
+                crate::contact::strictly_inside(&tri.map(|i| vertices[i as usize]), c, margin)
+            }) {
+                return Err(overlap(format!(
+                    "overlaps the body at t = 0: its corner {k} at [{}, {}] lies inside triangle {t}; start it apart from the body",
+                    c.x, c.y
+                )));
+            }
+        }
+        self.obstacles.push(obstacle);
         Ok(index)
     }
 

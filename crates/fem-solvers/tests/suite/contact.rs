@@ -213,3 +213,68 @@ fn kinematic_obstacle_pushes_the_body_and_static_obstacle_holds_it() {
         "strip top under the plate at {top_mid}"
     );
 }
+
+/// Geometry at t = 0: a body below the ground, an obstacle over the body (a vertex inside it,
+/// or its corner inside a triangle) and a self-crossing polygon are errors naming what and
+/// where; a body resting exactly on the ground and an obstacle touching it are fine.
+#[test]
+fn overlaps_at_the_start_and_self_crossing_obstacles_are_refused() {
+    let mesh = rectangle_mesh(Vec2::new(0.0, 0.0), 1.0, 1.0, 4, 4).unwrap();
+    let mut m = Model::with_total_mass(mesh, NeoHookean::new(lame(1e4)), 1.0).unwrap();
+    // Resting on y = 0: fine. Above the lowest row: an error naming a vertex.
+    m.set_ground(Some(Ground::horizontal(0.0))).unwrap();
+    let e = m
+        .set_ground(Some(Ground::horizontal(0.3)))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.starts_with("ground: vertex ") && e.contains("3.000e-1 m below"),
+        "{e}"
+    );
+    let square = |x0: Real, y0: Real, s: Real| {
+        vec![
+            Vec2::new(x0, y0),
+            Vec2::new(x0 + s, y0),
+            Vec2::new(x0 + s, y0 + s),
+            Vec2::new(x0, y0 + s),
+        ]
+    };
+    // Touching the top edge from above: fine.
+    m.add_obstacle(&square(0.2, 1.0, 0.5), ObstacleMotion::Static)
+        .unwrap();
+    // Covering the vertex (0.5, 0.5).
+    let e = m
+        .add_obstacle(&square(0.4, 0.4, 0.2), ObstacleMotion::Static)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("obstacles[1]: overlaps the body at t = 0: vertex"),
+        "{e}"
+    );
+    // Small enough to hold no vertex: its corners lie inside triangles.
+    let e = m
+        .add_obstacle(&square(0.55, 0.55, 0.1), ObstacleMotion::Static)
+        .unwrap_err()
+        .to_string();
+    // (Corner 0 lies on a cell diagonal: touching, not inside; corner 1 is inside.)
+    assert!(
+        e.contains("its corner 1 at [0.65, 0.55] lies inside triangle"),
+        "{e}"
+    );
+    // A bow tie with positive area (one lobe larger).
+    let bow = [
+        Vec2::new(2.0, 0.0),
+        Vec2::new(3.0, 1.0),
+        Vec2::new(3.0, 0.0),
+        Vec2::new(2.0, 2.0),
+    ];
+    let e = m
+        .add_obstacle(&bow, ObstacleMotion::Static)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("polygon edges 0") && e.contains("must be simple"),
+        "{e}"
+    );
+    assert_eq!(m.obstacles().len(), 1);
+}

@@ -539,6 +539,35 @@ fn bad_input_is_one_error_line_and_no_output() {
             vec!["solver.kind", "euler"],
         ),
         (vec!["case-a", "--threads", "0"], vec!["--threads"]),
+        // Geometry at t = 0: the body below the ground, an obstacle inside the body, a
+        // self-crossing obstacle (before: flung or blown up without a word).
+        (
+            vec!["case-d", "--set", "ground.height=0.05"],
+            vec![
+                "built-in case-d",
+                "ground: vertex",
+                "below the ground at t = 0",
+            ],
+        ),
+        (
+            vec![
+                "case-d",
+                "--set",
+                "obstacles.0.polygon=[[0.5, 0.0], [0.8, 0.0], [0.8, 0.3], [0.5, 0.3]]",
+            ],
+            vec!["obstacles[0]: overlaps the body at t = 0", "lies inside it"],
+        ),
+        (
+            vec![
+                "case-d",
+                "--set",
+                "obstacles.0.polygon=[[1.3, 0.5], [1.5, 0.7], [1.5, 0.5], [1.3, 0.7]]",
+            ],
+            vec![
+                "obstacles.0.polygon = (edges 0 and 2 cross)",
+                "simple polygon",
+            ],
+        ),
         // Upper bounds (fem_solvers::limits, fem_cases::run::MAX_THREADS, MAX_GIF_FRAMES):
         // each a one-line error naming the field, never a hang or an allocation failure.
         (
