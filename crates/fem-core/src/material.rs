@@ -69,7 +69,7 @@ impl<'de> serde::Deserialize<'de> for PlaneModel {
 
 /// An invalid material constant: names the field, the value and the rule it breaks.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
-#[error("material.{field} = {value}: {rule}")]
+#[error("material.{field} = {}: {rule}", compact(*value))]
 pub struct MaterialError {
     /// Field name as in scene files (`youngs_modulus`, `poisson_ratio`, `density`).
     pub field: &'static str,
@@ -77,6 +77,17 @@ pub struct MaterialError {
     pub value: Real,
     /// What the value must satisfy.
     pub rule: &'static str,
+}
+
+/// `v` as Rust prints it, or in scientific notation when that would be long (5e-324, not 324
+/// digits).
+fn compact(v: Real) -> String {
+    let plain = v.to_string();
+    if plain.len() > 24 {
+        format!("{v:e}")
+    } else {
+        plain
+    }
 }
 
 /// The Lamé parameters `mu` (shear modulus) and `lambda`, in Pa.
@@ -96,6 +107,10 @@ pub struct Material {
     density: Real,
 }
 
+/// The smallest Young's modulus accepted, Pa: below it the Lamé parameters underflow to
+/// subnormal numbers or zero.
+pub const MIN_YOUNGS_MODULUS: Real = 1e-290;
+
 impl Material {
     /// Validate and build. `youngs_modulus` in Pa (finite, > 0), `poisson_ratio` in (-1, 0.5),
     /// `density` in kg/m^3 (finite, > 0; with unit thickness, the mass per unit area).
@@ -110,6 +125,13 @@ impl Material {
                 "youngs_modulus",
                 youngs_modulus,
                 "must be a finite number > 0 (Pa)",
+            );
+        }
+        if youngs_modulus < MIN_YOUNGS_MODULUS {
+            return err(
+                "youngs_modulus",
+                youngs_modulus,
+                "must be at least 1e-290 Pa (smaller values underflow the Lame parameters)",
             );
         }
         if !poisson_ratio.is_finite() || poisson_ratio <= -1.0 || poisson_ratio >= 0.5 {

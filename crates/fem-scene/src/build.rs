@@ -198,7 +198,7 @@ pub fn lame(scene: &LoadedScene) -> Result<Lame, SceneError> {
     let m = &scene.scene.material;
     // The density passed here only matters for wave speeds; masses come from the model.
     let material = Material::new(m.youngs_modulus, m.poisson_ratio, 1.0)
-        .map_err(|e| SceneError::Scene(format!("{}: material: {e}", scene.origin)))?;
+        .map_err(|e| SceneError::Scene(format!("{}: {e}", scene.origin)))?;
     Ok(material.lame(m.plane))
 }
 

@@ -68,9 +68,9 @@ impl<E: Energy> Model<E> {
         let modulus = energy.dpk1(&Mat2::identity())[(0, 0)];
         if !(modulus.is_finite() && modulus > 0.0) {
             return Err(SolverError::invalid(
-                "energy.dpk1(I)[0][0]",
-                modulus,
-                "the energy's rest stiffness must be finite and > 0",
+                "energy",
+                format!("{} (stiffness at rest {modulus:e} Pa)", energy.name()),
+                "must have a finite stiffness > 0 at rest: check youngs_modulus and poisson_ratio",
             ));
         }
         let elements = pack(&mesh);

@@ -17,20 +17,36 @@ struct Fem2d {
 #[derive(Debug, Subcommand)]
 enum Command {
     /// Run one scene (a built-in case or a scene file) under one energy and solver.
+    // Negative numbers are values (`--alpha -1` reaches validation, which names the flag).
+    #[command(allow_negative_numbers = true)]
     Run(Box<cli::run::RunArgs>),
     /// The energy x solver matrix on one scene: probes, peak stress, cost, stability.
+    // Negative numbers are values (`--alpha -1` reaches validation, which names the flag).
+    #[command(allow_negative_numbers = true)]
     Compare(Box<cli::compare::CompareArgs>),
     /// Regenerate the paper's Table 1 (case A) beside the paper's values; calibration scan.
+    // Negative numbers are values (`--alpha -1` reaches validation, which names the flag).
+    #[command(allow_negative_numbers = true)]
     Table1(Box<cli::table1::Table1Args>),
     /// Run one shard of a parameter sweep (any batch scheduler can run the shards).
+    // Negative numbers are values (`--alpha -1` reaches validation, which names the flag).
+    #[command(allow_negative_numbers = true)]
     Sweep(Box<cli::sweep::SweepArgs>),
     /// Join the shard files of a sweep into one table (JSON, CSV, markdown).
+    // Negative numbers are values (`--alpha -1` reaches validation, which names the flag).
+    #[command(allow_negative_numbers = true)]
     Merge(Box<cli::sweep::MergeArgs>),
     /// Turn a 3D model (OBJ, STL, PLY or the built-in body) into a 2D FEM mesh.
+    // Negative numbers are values (`--alpha -1` reaches validation, which names the flag).
+    #[command(allow_negative_numbers = true)]
     Mesh(Box<cli::mesh::MeshArgs>),
     /// Run cases A-D and write one self-contained HTML report (tables, figures, curves, animations).
+    // Negative numbers are values (`--alpha -1` reaches validation, which names the flag).
+    #[command(allow_negative_numbers = true)]
     Report(Box<cli::report::ReportArgs>),
     /// Regenerate the paper's figures 1-5 and the plots (PNG and SVG).
+    // Negative numbers are values (`--alpha -1` reaches validation, which names the flag).
+    #[command(allow_negative_numbers = true)]
     Figures(Box<cli::report::FiguresArgs>),
 }
 

@@ -118,8 +118,61 @@ fn parse_vec3(text: &str) -> Result<[f64; 3], String> {
     Ok(v)
 }
 
+/// The numeric flags, checked before anything is loaded so each error names its flag.
+fn check_flags(args: &MeshArgs) -> Result<(), String> {
+    let positive = |flag: &str, v: f64| {
+        if v.is_finite() && v > 0.0 {
+            Ok(())
+        } else {
+            Err(format!("{flag} {v}: must be a finite number > 0"))
+        }
+    };
+    let non_negative = |flag: &str, v: f64| {
+        if v.is_finite() && v >= 0.0 {
+            Ok(())
+        } else {
+            Err(format!("{flag} {v}: must be a finite number >= 0"))
+        }
+    };
+    positive("--scale", args.scale)?;
+    non_negative("--merge-distance", args.merge_distance)?;
+    if let Some(a) = args.alpha {
+        positive("--alpha", a)?;
+    }
+    positive("--alpha-margin", args.alpha_margin)?;
+    non_negative("--fill-holes-below", args.fill_holes_below)?;
+    if let Some(e) = args.epsilon {
+        non_negative("--epsilon", e)?;
+    }
+    positive("--epsilon-per-radius", args.epsilon_per_radius)?;
+    if let Some(a) = args.max_area {
+        positive("--max-area", a)?;
+    }
+    if !(args.min_angle.is_finite() && (0.0..60.0).contains(&args.min_angle)) {
+        return Err(format!(
+            "--min-angle {}: must lie in [0, 60) degrees",
+            args.min_angle
+        ));
+    }
+    let max = fem_mesh::triangulate::MAX_STEINER_POINTS;
+    if args.max_steiner > max {
+        return Err(format!(
+            "--max-steiner {}: must be at most {max}",
+            args.max_steiner
+        ));
+    }
+    if args.preview_height == 0 || args.preview_height > 8192 {
+        return Err(format!(
+            "--preview-height {}: must lie between 1 and 8192 pixels",
+            args.preview_height
+        ));
+    }
+    Ok(())
+}
+
 /// Runs `fem2d mesh`; errors are one-line messages.
 pub fn run(args: &MeshArgs) -> Result<(), String> {
+    check_flags(args)?;
     let (mut surface, source) = match (&args.input, args.builtin_body) {
         (_, true) => (human_body(), "built-in body".to_string()),
         (Some(path), false) => {

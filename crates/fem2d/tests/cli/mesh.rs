@@ -136,6 +136,19 @@ fn bad_input_is_a_one_line_error_without_output() {
             "coincides",
         ),
         (vec!["--builtin-body", "--scale", "0"], "--scale"),
+        // Negative values are values, rejected by validation naming the flag.
+        (
+            vec!["--builtin-body", "--alpha", "-1"],
+            "--alpha -1: must be a finite number > 0",
+        ),
+        (
+            vec!["--builtin-body", "--epsilon", "-0.5"],
+            "--epsilon -0.5: must be",
+        ),
+        (
+            vec!["--builtin-body", "--max-steiner", "18446744073709551615"],
+            "--max-steiner 18446744073709551615: must be at most 10000000",
+        ),
         (
             vec![
                 "--builtin-body",

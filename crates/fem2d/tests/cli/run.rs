@@ -477,6 +477,10 @@ fn bad_input_is_one_error_line_and_no_output() {
             vec!["material.youngs_modulus = NaN"],
         ),
         (
+            vec!["case-a", "--set", "material.youngs_modulus=5e-324"],
+            vec!["material.youngs_modulus = 5e-324", "at least 1e-290 Pa"],
+        ),
+        (
             vec!["case-a", "--set", "material.poisson_ratio=0.5"],
             vec!["material.poisson_ratio = 0.5"],
         ),
