@@ -127,6 +127,11 @@ pub struct ShardFile {
     pub results: Vec<JobResult>,
 }
 
+/// Most jobs a sweep may have (the product of its axes' lengths).
+pub const MAX_JOBS: usize = 1_000_000;
+/// Longest simulated `duration` of a sweep job, s.
+pub const MAX_DURATION: f64 = 1e6;
+
 /// Parse a spec's text.
 pub fn parse_sweep(text: &str, origin: &str, base_dir: &Path) -> Result<Sweep, SceneError> {
     let spec: SweepSpec = toml::from_str(text).map_err(|e: toml::de::Error| {
@@ -162,16 +167,47 @@ pub fn parse_sweep(text: &str, origin: &str, base_dir: &Path) -> Result<Sweep, S
             }
         }
     }
+    // A key swept twice would run only its last value.
+    let mut seen: BTreeMap<String, usize> = BTreeMap::new();
+    for (i, a) in spec.axes.iter().enumerate() {
+        for key in axis_keys(a).unwrap_or_default() {
+            if let Some(j) = seen.insert(key.clone(), i) {
+                return Err(SceneError::Scene(format!(
+                    "{origin}: axis.{i}: key {key:?} is already swept by axis.{j}"
+                )));
+            }
+        }
+    }
+    let jobs = spec
+        .axes
+        .iter()
+        .try_fold(1usize, |n, a| n.checked_mul(a.values.len()))
+        .filter(|&n| n <= MAX_JOBS);
+    if jobs.is_none() {
+        let sizes: Vec<String> = spec
+            .axes
+            .iter()
+            .map(|a| a.values.len().to_string())
+            .collect();
+        return Err(SceneError::Scene(format!(
+            "{origin}: axis: {} jobs is more than {MAX_JOBS}; split the sweep",
+            sizes.join(" x ")
+        )));
+    }
     if let Some(d) = spec.duration {
-        if !(d.is_finite() && d > 0.0) {
+        if !(d.is_finite() && d > 0.0 && d <= MAX_DURATION) {
+            let shown = if d.to_string().len() > 24 {
+                format!("{d:e}")
+            } else {
+                d.to_string()
+            };
             return Err(SceneError::Scene(format!(
-                "{origin}: duration = {d}: must be a finite number > 0 (s)"
+                "{origin}: duration = {shown}: must be a finite number > 0 and at most {MAX_DURATION:e} (s)"
             )));
         }
     }
-    let canonical = toml::to_string(&spec).unwrap_or_default();
     Ok(Sweep {
-        digest: format!("{:016x}", fnv1a(canonical.as_bytes())),
+        digest: digest_of(&spec),
         spec,
         origin: origin.to_owned(),
         base_dir: base_dir.to_path_buf(),
@@ -188,6 +224,48 @@ pub fn load_sweep(path: &Path) -> Result<Sweep, SceneError> {
     })?;
     let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
     parse_sweep(&text, &path.display().to_string(), &base)
+}
+
+/// The digest of a spec's canonical form.
+fn digest_of(spec: &SweepSpec) -> String {
+    let canonical = toml::to_string(spec).unwrap_or_default();
+    format!("{:016x}", fnv1a(canonical.as_bytes()))
+}
+
+/// The first field in which two results of the same job differ, timings aside (`None` when
+/// they agree).
+fn first_difference(a: &JobResult, b: &JobResult) -> Option<String> {
+    const TIMINGS: [&str; 4] = [
+        "wall_seconds",
+        "step_seconds",
+        "element_steps_per_second",
+        "real_time_factor",
+    ];
+    let strip = |r: &JobResult| {
+        let mut v = serde_json::to_value(r).unwrap_or_default();
+        if let Some(s) = v.get_mut("summary").and_then(|s| s.as_object_mut()) {
+            for t in TIMINGS {
+                s.remove(t);
+            }
+        }
+        v
+    };
+    let (va, vb) = (strip(a), strip(b));
+    let (Some(oa), Some(ob)) = (va.as_object(), vb.as_object()) else {
+        return (va != vb).then(|| "the result".to_owned());
+    };
+    for (k, x) in oa {
+        let y = ob.get(k).unwrap_or(&serde_json::Value::Null);
+        if x != y {
+            if let (Some(sx), Some(sy)) = (x.as_object(), y.as_object()) {
+                if let Some((kk, _)) = sx.iter().find(|(kk, xx)| sy.get(*kk) != Some(*xx)) {
+                    return Some(format!("{k}.{kk}"));
+                }
+            }
+            return Some(k.clone());
+        }
+    }
+    None
 }
 
 /// 64-bit FNV-1a: a stable digest to match shards (not for security; no dependency needed).
@@ -312,16 +390,33 @@ impl Sweep {
                             .ok()
                             .and_then(|scene| toml::to_string(&scene.scene).ok())
                             .unwrap_or_else(|| with_reference.join("\u{1f}"));
-                        let entry = cache
-                            .runs
-                            .entry(key)
-                            .or_insert_with(|| self.run_with(&with_reference, threads).ok());
-                        entry
-                            .as_ref()
-                            .filter(|reference_run| !reference_run.summary.blew_up)
-                            .and_then(|reference_run| {
+                        let entry = cache.runs.entry(key).or_insert_with(|| {
+                            self.run_with(&with_reference, threads)
+                                .map_err(|e| e.to_string())
+                        });
+                        match entry {
+                            // The reference itself is bad (say a solver name that does not
+                            // exist): the job fails, naming it.
+                            Err(e) => return failed(job, &r, format!("reference: {e}")),
+                            Ok(reference_run) if reference_run.summary.blew_up => None,
+                            Ok(reference_run) => {
+                                if let Some(name) = reference.probe.as_deref() {
+                                    if r.probe(name).is_none() {
+                                        let names: Vec<&str> =
+                                            r.probes.iter().map(|p| p.name.as_str()).collect();
+                                        return failed(
+                                            job,
+                                            &r,
+                                            format!(
+                                                "reference.probe = {name:?}: the scene has no such probe (it has {})",
+                                                names.join(", ")
+                                            ),
+                                        );
+                                    }
+                                }
                                 compare_to_reference(&r, reference_run, reference.probe.as_deref())
-                            })
+                            }
+                        }
                     }
                     _ => None,
                 };
@@ -384,7 +479,17 @@ pub fn cost_per_second(s: &Summary) -> Option<f64> {
 /// Reference runs already made in this shard, by their override list.
 #[derive(Default)]
 struct ReferenceCache {
-    runs: BTreeMap<String, Option<RunResult>>,
+    runs: BTreeMap<String, Result<RunResult, String>>,
+}
+
+/// A job that ran but whose comparison could not be made.
+fn failed(job: &Job, run: &RunResult, error: String) -> JobResult {
+    JobResult {
+        job: job.clone(),
+        summary: Some(run.summary.clone()),
+        error: Some(error),
+        reference_error: None,
+    }
 }
 
 /// RMS over `run`'s frames of the distance between its probe displacements and `reference`'s,
@@ -470,6 +575,15 @@ pub fn merge(paths: &[PathBuf]) -> Result<Merged, SceneError> {
         let shard: ShardFile = serde_json::from_slice(&bytes).map_err(|e| {
             SceneError::Scene(format!("{}: not a sweep shard file: {e}", path.display()))
         })?;
+        // The digest is recomputed, not trusted: a spec edited in the file changes it.
+        let recomputed = digest_of(&shard.spec);
+        if recomputed != shard.digest {
+            return Err(SceneError::Scene(format!(
+                "{}: digest = {}: does not match the spec in the file (its digest is {recomputed}): the file was edited",
+                path.display(),
+                shard.digest
+            )));
+        }
         match &first {
             None => {
                 first = Some((
@@ -491,6 +605,21 @@ pub fn merge(paths: &[PathBuf]) -> Result<Merged, SceneError> {
             }
         }
         let total = first.as_ref().map_or(0, |f| f.2);
+        let expected = Sweep {
+            digest: shard.digest.clone(),
+            spec: shard.spec.clone(),
+            origin: path.display().to_string(),
+            base_dir: PathBuf::new(),
+        }
+        .jobs();
+        if expected.len() != total {
+            return Err(SceneError::Scene(format!(
+                "{}: total_jobs = {}: the spec has {} jobs",
+                path.display(),
+                shard.total_jobs,
+                expected.len()
+            )));
+        }
         for r in shard.results {
             if r.job.index >= total {
                 return Err(SceneError::Scene(format!(
@@ -499,14 +628,21 @@ pub fn merge(paths: &[PathBuf]) -> Result<Merged, SceneError> {
                     r.job.index
                 )));
             }
+            if r.job != expected[r.job.index] {
+                return Err(SceneError::Scene(format!(
+                    "{}: job {}: parameters {:?} are not the spec's {:?}",
+                    path.display(),
+                    r.job.index,
+                    r.job.params,
+                    expected[r.job.index].params
+                )));
+            }
             if let Some(prev) = by_index.get(&r.job.index) {
-                if prev.job != r.job
-                    || prev.error != r.error
-                    || prev.summary.as_ref().map(|s| s.blew_up)
-                        != r.summary.as_ref().map(|s| s.blew_up)
-                {
+                // The same job run twice (a shard run again) must agree in everything but
+                // the timings.
+                if let Some(field) = first_difference(prev, &r) {
                     return Err(SceneError::Scene(format!(
-                        "{}: job {} appears twice with different results",
+                        "{}: job {} appears twice with different results ({field} differs)",
                         path.display(),
                         r.job.index
                     )));

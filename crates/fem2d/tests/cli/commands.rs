@@ -3,6 +3,7 @@
 //! errors for bad input.
 
 use crate::common::{arg, fem2d, scratch};
+use std::path::Path;
 use std::process::Output;
 
 fn ok(out: &Output) -> String {
@@ -271,4 +272,150 @@ values = [2e-3, 1e-3, 5e-4]
             .unwrap()
             .contains(",reference_error,cost_per_simulated_second,")
     );
+}
+
+/// Merge refuses every conflict: the same job with different results (timings aside), a spec
+/// edited under its old digest, a job whose parameters are not the spec's. Sweep specs with a
+/// key swept twice, too many jobs or an endless duration are refused; a reference naming a
+/// solver that does not exist or a probe the scene lacks fails the job instead of reporting it.
+#[test]
+fn merge_refuses_conflicts_and_sweeps_refuse_bad_axes_and_references() {
+    let dir = scratch("merge-conflicts");
+    let spec = dir.join("spec.toml");
+    std::fs::write(&spec, SPEC).unwrap();
+    let shards = dir.join("shards");
+    ok(&fem2d(&[
+        "sweep",
+        arg(&spec),
+        "--shard",
+        "1/2",
+        "--threads",
+        "1",
+        "--out",
+        arg(&shards),
+    ]));
+    let shard = shards.join("shard-1-of-2.json");
+    let text = std::fs::read_to_string(&shard).unwrap();
+    let original: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let tamper = |name: &str, edit: &dyn Fn(&mut serde_json::Value)| {
+        let mut v = original.clone();
+        edit(&mut v);
+        let path = dir.join(name);
+        std::fs::write(&path, serde_json::to_string(&v).unwrap()).unwrap();
+        path
+    };
+    let merge_err = |other: &Path| {
+        one_line_error(&fem2d(&[
+            "merge",
+            arg(&shard),
+            arg(other),
+            "--out",
+            arg(&dir.join("merged")),
+        ]))
+    };
+    // A rerun whose timings differ merges (nothing else is compared for timing)...
+    let rerun = tamper("rerun.json", &|v| {
+        v["results"][0]["summary"]["wall_seconds"] = serde_json::json!(123.0);
+    });
+    let err = merge_err(&rerun);
+    assert!(
+        err.contains("jobs are missing"),
+        "only shard 1 of 2 given: {err}"
+    );
+    // ...but a different peak stress does not.
+    let differs = tamper("differs.json", &|v| {
+        v["results"][0]["summary"]["max_von_mises"] = serde_json::json!(123.0);
+    });
+    let err = merge_err(&differs);
+    assert!(
+        err.contains("appears twice with different results (summary.max_von_mises differs)"),
+        "{err}"
+    );
+    let edited = tamper("edited.json", &|v| {
+        v["spec"]["set"][0] = serde_json::json!("solver.steps=41");
+    });
+    let err = merge_err(&edited);
+    assert!(
+        err.contains("does not match the spec in the file") && err.contains("edited"),
+        "{err}"
+    );
+    let params = tamper("params.json", &|v| {
+        v["results"][0]["job"]["params"][0][1] = serde_json::json!("\"linear\"");
+    });
+    let err = merge_err(&params);
+    assert!(err.contains("are not the spec's"), "{err}");
+
+    // Bad specs, each one line before anything runs.
+    let out = dir.join("bad-out");
+    let bad = |name: &str, text: String, want: &str| {
+        let path = dir.join(name);
+        std::fs::write(&path, text).unwrap();
+        let err = one_line_error(&fem2d(&["sweep", arg(&path), "--out", arg(&out)]));
+        assert!(err.contains(want), "{name}: {err}");
+    };
+    bad(
+        "twice.toml",
+        format!("{SPEC}\n[[axis]]\nkey = \"energy\"\nvalues = [\"linear\"]\n"),
+        "axis.2: key \"energy\" is already swept by axis.0",
+    );
+    let thousand: Vec<String> = (0..1000)
+        .map(|k| format!("{}", 1e-4 + k as f64 * 1e-7))
+        .collect();
+    let axis = format!(
+        "[[axis]]\nkey = \"solver.dt\"\nvalues = [{}]\n",
+        thousand.join(", ")
+    );
+    bad(
+        "huge.toml",
+        format!(
+            "scene = \"case-a\"\n{axis}[[axis]]\nkey = \"material.youngs_modulus\"\nvalues = [{}]\n[[axis]]\nkey = \"material.density\"\nvalues = [{}]\n",
+            thousand.join(", "),
+            thousand.join(", ")
+        ),
+        "1000 x 1000 x 1000 jobs is more than 1000000",
+    );
+    bad(
+        "endless.toml",
+        SPEC.replace("scene = \"case-a\"", "scene = \"case-a\"\nduration = 1e300"),
+        "duration = 1e300: must be a finite number > 0 and at most 1e6",
+    );
+    assert!(!out.exists() || std::fs::read_dir(&out).unwrap().next().is_none());
+
+    // References that cannot be made fail the job, naming why.
+    for (name, reference, want) in [
+        (
+            "solver",
+            "set = [\"solver.kind=bogus\"]\nprobe = \"tip\"",
+            "reference: ",
+        ),
+        (
+            "probe",
+            "set = [\"solver.dt=1e-4\"]\nprobe = \"nose\"",
+            "reference.probe = \"nose\": the scene has no such probe (it has tip",
+        ),
+    ] {
+        let spec = dir.join(format!("ref-{name}.toml"));
+        std::fs::write(
+            &spec,
+            format!("scene = \"case-a\"\nduration = 0.02\n\n[reference]\n{reference}\n\n[[axis]]\nkey = \"solver.dt\"\nvalues = [1e-3]\n"),
+        )
+        .unwrap();
+        let out = dir.join(format!("ref-{name}"));
+        ok(&fem2d(&[
+            "sweep",
+            arg(&spec),
+            "--threads",
+            "1",
+            "--out",
+            arg(&out),
+        ]));
+        ok(&fem2d(&["merge", arg(&out), "--out", arg(&out)]));
+        let m: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(out.join("sweep.json")).unwrap()).unwrap();
+        let error = m["results"][0]["error"]
+            .as_str()
+            .unwrap_or_default()
+            .to_owned();
+        assert!(error.contains(want), "{name}: {error}");
+    }
 }
