@@ -301,8 +301,15 @@ impl FrameSink for VtkSink {
         self.positions.clear();
         self.positions
             .extend(f.positions.iter().map(|p| [p.x, p.y]));
+        // A blowing-up run overflows: det F of huge positions is inf - inf = NaN. Written as
+        // -1e30 (VTK's ASCII readers cannot read NaN), so the frames up to the blow-up stay
+        // readable and the run still reports the blow-up.
         self.det_f.clear();
-        self.det_f.extend(f.stress.iter().map(|s| s.det_f));
+        self.det_f.extend(
+            f.stress
+                .iter()
+                .map(|s| if s.det_f.is_finite() { s.det_f } else { -1e30 }),
+        );
         // VTK's ASCII readers cannot read NaN: an element whose stress is undefined (inverted
         // under a log-barrier energy; det_F <= 0 there) is written as -1, a value von Mises
         // stress never takes.

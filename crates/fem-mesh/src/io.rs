@@ -15,30 +15,85 @@ use crate::error::{MeshError, Result};
 use crate::types::Mesh2;
 
 /// Writes `bytes` to `path` atomically (temporary file in the same directory, then rename).
+/// Only regular files are written: an existing directory, device, FIFO or symbolic link at
+/// `path` is an error (a rename would replace it).
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-        _ => std::path::PathBuf::from("."),
-    };
-    let name = path
-        .file_name()
-        .ok_or_else(|| MeshError::io(path, std::io::Error::other("not a file path")))?;
-    let tmp = dir.join(format!(
-        ".{}.tmp{}",
-        name.to_string_lossy(),
-        std::process::id()
-    ));
-    let result = (|| {
-        let mut file = std::fs::File::create(&tmp)?;
-        file.write_all(bytes)?;
-        file.sync_all()?;
-        std::fs::rename(&tmp, path)
-    })();
-    if let Err(e) = result {
-        let _ = std::fs::remove_file(&tmp);
-        return Err(MeshError::io(path, e));
+    Staged::write(path, bytes)?.commit()
+}
+
+/// A file written to a temporary name beside its destination, not yet renamed into place: a
+/// command with several outputs stages them all and commits them only when every one was
+/// written, so a failure leaves none of them.
+#[derive(Debug)]
+pub struct Staged {
+    tmp: std::path::PathBuf,
+    dest: std::path::PathBuf,
+    done: bool,
+}
+
+impl Staged {
+    /// Check that `path` is (or may become) a regular file, and write `bytes` beside it.
+    pub fn write(path: &Path, bytes: &[u8]) -> Result<Staged> {
+        static COUNTER: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+        if let Ok(meta) = std::fs::symlink_metadata(path) {
+            let ft = meta.file_type();
+            if !ft.is_file() {
+                let what = if ft.is_dir() {
+                    "a directory"
+                } else if ft.is_symlink() {
+                    "a symbolic link"
+                } else {
+                    "a device, FIFO or socket"
+                };
+                return Err(MeshError::io(
+                    path,
+                    std::io::Error::other(format!("is {what}; fem2d writes regular files only")),
+                ));
+            }
+        }
+        let dir = match path.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+            _ => std::path::PathBuf::from("."),
+        };
+        let name = path
+            .file_name()
+            .ok_or_else(|| MeshError::io(path, std::io::Error::other("not a file path")))?;
+        let n = COUNTER.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        let tmp = dir.join(format!(
+            ".{}.tmp{}-{n}",
+            name.to_string_lossy(),
+            std::process::id()
+        ));
+        let result = (|| {
+            let mut file = std::fs::File::create(&tmp)?;
+            file.write_all(bytes)?;
+            file.sync_all()
+        })();
+        if let Err(e) = result {
+            let _ = std::fs::remove_file(&tmp);
+            return Err(MeshError::io(path, e));
+        }
+        Ok(Staged {
+            tmp,
+            dest: path.to_path_buf(),
+            done: false,
+        })
     }
-    Ok(())
+
+    /// Rename into place.
+    pub fn commit(mut self) -> Result<()> {
+        let result = std::fs::rename(&self.tmp, &self.dest);
+        self.done = result.is_ok();
+        result.map_err(|e| MeshError::io(&self.dest, e))
+    }
+}
+
+impl Drop for Staged {
+    fn drop(&mut self) {
+        if !self.done {
+            let _ = std::fs::remove_file(&self.tmp);
+        }
+    }
 }
 
 /// Mesh JSON text of `mesh` (one vertex or triangle per line).

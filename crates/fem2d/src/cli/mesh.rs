@@ -7,7 +7,7 @@ use clap::Args;
 use fem_mesh::alpha::{AlphaParams, Components};
 use fem_mesh::body::human_body;
 use fem_mesh::camera::{Camera, Projection, ProjectionParams};
-use fem_mesh::io::{write_gmsh, write_mesh_json, write_vtk};
+use fem_mesh::io::{Staged, mesh_to_gmsh, mesh_to_json, mesh_to_vtk};
 use fem_mesh::load::{LoadOptions, load_model};
 use fem_mesh::pipeline::{PipelineOutput, PipelineParams, mesh_surface};
 use fem_mesh::preview::{PREVIEW_FILES, PreviewParams, write_previews};
@@ -246,17 +246,29 @@ pub fn run(args: &MeshArgs) -> Result<(), String> {
         }
         eprintln!("warning: {what}");
     }
+    // All or none: the mesh files are staged (written beside their names), the previews
+    // drawn, and only then are the files renamed into place.
+    let mut outputs: Vec<(&str, &PathBuf, String)> = Vec::new();
     if let Some(path) = &args.output {
-        write_mesh_json(path, &out.mesh).map_err(|e| e.to_string())?;
-        println!("wrote {}", path.display());
+        outputs.push(("-o", path, mesh_to_json(&out.mesh)));
     }
     if let Some(path) = &args.msh {
-        write_gmsh(path, &out.mesh).map_err(|e| e.to_string())?;
-        println!("wrote {}", path.display());
+        outputs.push(("--msh", path, mesh_to_gmsh(&out.mesh)));
     }
     if let Some(path) = &args.vtk {
-        write_vtk(path, &out.mesh).map_err(|e| e.to_string())?;
-        println!("wrote {}", path.display());
+        outputs.push(("--vtk", path, mesh_to_vtk(&out.mesh)));
+    }
+    for (k, (flag, path, _)) in outputs.iter().enumerate() {
+        if let Some((other, _, _)) = outputs[..k].iter().find(|(_, p, _)| p == path) {
+            return Err(format!(
+                "{flag} {}: the same file as {other}; give each output its own path",
+                path.display()
+            ));
+        }
+    }
+    let mut staged = Vec::new();
+    for (_, path, text) in &outputs {
+        staged.push(Staged::write(path, text.as_bytes()).map_err(|e| e.to_string())?);
     }
     if let Some(dir) = &args.preview {
         let stages = out.stages();
@@ -265,6 +277,14 @@ pub fn run(args: &MeshArgs) -> Result<(), String> {
             ..PreviewParams::default()
         };
         write_previews(dir, &stages, &preview).map_err(|e| e.to_string())?;
+    }
+    for s in staged {
+        s.commit().map_err(|e| e.to_string())?;
+    }
+    for (_, path, _) in &outputs {
+        println!("wrote {}", path.display());
+    }
+    if let Some(dir) = &args.preview {
         println!("wrote {} in {}", PREVIEW_FILES.join(", "), dir.display());
     }
     Ok(())

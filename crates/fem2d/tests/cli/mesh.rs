@@ -2,7 +2,7 @@
 //! reader), Gmsh and VTK files and four stage previews; bad input ends with a one-line error and
 //! a non-zero exit code, and leaves no output file behind.
 
-use crate::common::{arg, fem2d, scratch};
+use crate::common::{arg, fem2d, one_line_error, scratch};
 
 #[test]
 fn builtin_body_to_mesh_files_and_previews() {
@@ -181,4 +181,67 @@ fn bad_input_is_a_one_line_error_without_output() {
             .success()
     );
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// The mesh outputs are all or none, and only regular files are written: two outputs on one
+/// path, a FIFO, a symbolic link, a directory or a preview that cannot be written are one-line
+/// errors, and then no output file exists (and nothing was replaced).
+#[test]
+fn mesh_outputs_are_all_or_none_and_only_regular_files() {
+    let dir = scratch("mesh-all-or-none");
+    let json = dir.join("m.json");
+    let err = one_line_error(&[
+        "mesh",
+        "--builtin-body",
+        "-o",
+        arg(&json),
+        "--msh",
+        arg(&json),
+    ]);
+    assert!(
+        err.contains("--msh") && err.contains("the same file as -o"),
+        "{err}"
+    );
+    assert!(!json.exists());
+
+    let fifo = dir.join("fifo");
+    assert!(
+        std::process::Command::new("mkfifo")
+            .arg(&fifo)
+            .status()
+            .unwrap()
+            .success()
+    );
+    let err = one_line_error(&["mesh", "--builtin-body", "-o", arg(&fifo)]);
+    assert!(err.contains("is a device, FIFO or socket"), "{err}");
+    let target = dir.join("target.json");
+    std::fs::write(&target, "keep").unwrap();
+    let link = dir.join("link.json");
+    std::os::unix::fs::symlink(&target, &link).unwrap();
+    let err = one_line_error(&["mesh", "--builtin-body", "-o", arg(&link)]);
+    assert!(err.contains("is a symbolic link"), "{err}");
+    assert_eq!(std::fs::read_to_string(&target).unwrap(), "keep");
+    let err = one_line_error(&["mesh", "--builtin-body", "-o", arg(&dir)]);
+    assert!(err.contains("is a directory"), "{err}");
+
+    // A preview that cannot be written (its directory is a file): no mesh file either.
+    let blocker = dir.join("blocker");
+    std::fs::write(&blocker, "").unwrap();
+    let out = fem2d(&[
+        "mesh",
+        "--builtin-body",
+        "-o",
+        arg(&json),
+        "--vtk",
+        arg(&dir.join("m.vtk")),
+        "--preview",
+        arg(&blocker),
+    ]);
+    assert!(!out.status.success());
+    assert!(!json.exists() && !dir.join("m.vtk").exists());
+    let names: Vec<String> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert!(names.iter().all(|n| !n.contains(".tmp")), "{names:?}");
 }

@@ -786,3 +786,33 @@ fn mesh_files_with_repeated_folded_or_overlapping_triangles_are_refused() {
         assert!(!out.exists(), "{name}");
     }
 }
+
+/// `--vtk` on a run that blows up: the outputs up to the blow-up (VTK included, det F of the
+/// overflowing frame written as -1e30) and the blow-up message, as without `--vtk`.
+#[test]
+fn vtk_on_a_run_that_blows_up_keeps_the_outputs_and_the_message() {
+    let dir = scratch("vtk-blow-up");
+    let out = fem2d(&[
+        "run",
+        "case-a",
+        "--dt",
+        "0.01",
+        "--steps",
+        "400",
+        "--vtk",
+        "-q",
+        "--out",
+        arg(&dir),
+    ]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.lines()
+            .last()
+            .unwrap()
+            .starts_with("error: the run blew up"),
+        "{err}"
+    );
+    assert!(dir.join("summary.json").exists() && dir.join("vtk/run.pvd").exists());
+    assert_eq!(json(&dir.join("summary.json"))["blew_up"], true);
+}
