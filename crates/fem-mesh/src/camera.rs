@@ -93,7 +93,10 @@ impl Camera {
         if all.clone().any(|v| !v.is_finite()) {
             return Err(MeshError::invalid(
                 "camera",
-                format!("non-finite value in {self:?}"),
+                format!(
+                    "position {:?}, focal point {:?}, up {:?}: every coordinate must be finite (a model with coordinates near the f64 limit overflows the preset views; scale it down with --scale)",
+                    self.position, self.focal_point, self.up
+                ),
             ));
         }
         let d = sub(self.focal_point, self.position);

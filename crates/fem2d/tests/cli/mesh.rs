@@ -99,7 +99,13 @@ fn bad_input_is_a_one_line_error_without_output() {
     }
     text.push_str("f 1 2 3\n");
     std::fs::write(&line, text).unwrap();
+    // Coordinates near the f64 limit: the preset view overflows; the message says how to fix it
+    // (before: a Rust debug dump of the camera).
+    let huge = dir.join("huge.obj");
+    std::fs::write(&huge, "v 1e300 0 0\nv 0 1e300 0\nv 0 0 1e300\nf 1 2 3\n").unwrap();
     let cases: Vec<(Vec<&str>, &str)> = vec![
+        (vec![arg(&huge)], "every coordinate must be finite"),
+        (vec![arg(&huge)], "scale it down with --scale"),
         (
             vec![arg(&line), "--epsilon", "0.001", "--view", "front"],
             "line.obj: triangulate: polygon 0 is (nearly) collinear",
