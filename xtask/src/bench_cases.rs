@@ -18,7 +18,9 @@ use std::path::PathBuf;
 
 use serde_json::{Value, json};
 
-use crate::util::{Fem2d, TempDir, array, command_line, num, read_json, root, text, write_atomic};
+use crate::util::{
+    Fem2d, TempDir, array, command_line, cpu_name, num, read_json, root, text, write_atomic,
+};
 
 /// The cases, in order.
 pub const CASES: [&str; 4] = ["case-a", "case-b", "case-c", "case-d"];
@@ -175,15 +177,7 @@ fn machine() -> Value {
                 .ok()
                 .map(|n| n.get() as u64)
         });
-    let cpu = std::fs::read_to_string("/proc/cpuinfo")
-        .ok()
-        .and_then(|t| {
-            t.lines()
-                .find(|l| l.starts_with("model name"))
-                .and_then(|l| l.split_once(':'))
-                .map(|(_, m)| m.trim().to_owned())
-        })
-        .unwrap_or_else(|| "unknown".into());
+    let cpu = cpu_name().unwrap_or_else(|| "unknown".into());
     json!({
         "nproc": nproc,
         "cpu": cpu,

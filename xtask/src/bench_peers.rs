@@ -20,7 +20,7 @@ use std::process::Command;
 
 use serde_json::Value;
 
-use crate::util::{cargo_program, command_line, root, write_atomic};
+use crate::util::{cargo_program, command_line, cpu_name, root, write_atomic};
 
 /// Alternating rounds per configuration.
 pub const ROUNDS: usize = 3;
@@ -107,7 +107,7 @@ pub fn run(args: &[&str]) -> Result<(), String> {
     }
 
     let mut md = String::new();
-    let cpu = cpu_name();
+    let cpu = cpu_name().unwrap_or_else(|| "unknown CPU".into());
     let _ = writeln!(
         md,
         "Explicit case A beam, f64, element-steps per second, best of {rounds} alternating rounds \
@@ -311,16 +311,4 @@ fn run_peer(
         r.first()
             .ok_or_else(|| format!("{script} printed no RESULT"))?,
     )
-}
-
-fn cpu_name() -> String {
-    std::fs::read_to_string("/proc/cpuinfo")
-        .ok()
-        .and_then(|t| {
-            t.lines()
-                .find(|l| l.starts_with("model name"))
-                .and_then(|l| l.split_once(':'))
-                .map(|(_, m)| m.trim().to_owned())
-        })
-        .unwrap_or_else(|| "unknown CPU".into())
 }
