@@ -30,6 +30,10 @@ use crate::files::FileSource;
 
 pub use fem_scene::run::{ProbeSummary, RunResult, Snapshot, Summary};
 
+/// Most numbers `frames.jsonl` may hold (frames x (2 x vertices + triangles)): about 20 GB of
+/// text.
+pub const MAX_FRAME_VALUES: u64 = 1_000_000_000;
+
 /// Most rayon threads a run may ask for (`--threads`): far above any machine this runs on, and
 /// low enough that a typo cannot make the pool allocate thousands of stacks.
 pub const MAX_THREADS: usize = 1024;
@@ -121,7 +125,14 @@ fn run_in_pool(
             })?;
         }
         if scene.scene.output.frames {
-            frames = Some(FramesJsonl::create(dir)?);
+            // Frames recorded: the first, one every `frame_every` steps (every increment when
+            // load stepping), and the last.
+            let s = &scene.scene;
+            let planned = match s.solver.kind.capabilities().clock {
+                fem_solvers::Clock::LoadFactor => s.solver.planned_steps() + 1,
+                fem_solvers::Clock::Time => s.solver.steps / s.output.frame_every.max(1) + 2,
+            };
+            frames = Some(FramesJsonl::create(dir, planned)?);
         }
         if options.vtk {
             vtk = Some(VtkSink::create(dir)?);
@@ -166,6 +177,7 @@ fn run_in_pool(
 
 /// `frames.jsonl`, written frame by frame into a temporary file renamed at the end.
 struct FramesJsonl {
+    planned: u64,
     tmp: PathBuf,
     dest: PathBuf,
     file: std::io::BufWriter<std::fs::File>,
@@ -173,12 +185,13 @@ struct FramesJsonl {
 }
 
 impl FramesJsonl {
-    fn create(dir: &Path) -> Result<Self, SceneError> {
+    fn create(dir: &Path, planned: u64) -> Result<Self, SceneError> {
         let dest = dir.join("frames.jsonl");
         let tmp = dir.join(".frames.jsonl.tmp");
         let file = std::fs::File::create(&tmp)
             .map_err(|e| SceneError::Io(format!("{}: {e}", tmp.display())))?;
         Ok(FramesJsonl {
+            planned,
             tmp,
             dest,
             file: std::io::BufWriter::new(file),
@@ -203,6 +216,17 @@ impl FramesJsonl {
 
 impl FrameSink for FramesJsonl {
     fn frame(&mut self, f: &Frame<'_>) -> Result<(), SceneError> {
+        if f.step == 0 {
+            // Checked on the first frame, when the mesh size is known.
+            let per_frame = (2 * f.positions.len() + f.von_mises.len()) as u64;
+            let total = self.planned.saturating_mul(per_frame);
+            if total > MAX_FRAME_VALUES {
+                return Err(SceneError::Usage(format!(
+                    "output.frames: {} frames of {per_frame} numbers is {total:e} numbers in frames.jsonl, more than {MAX_FRAME_VALUES:e} (about 20 GB); raise output.frame_every or set output.frames = false",
+                    self.planned
+                )));
+            }
+        }
         let w = &mut self.line;
         w.clear();
         let _ = write!(

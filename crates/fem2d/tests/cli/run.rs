@@ -572,6 +572,25 @@ fn bad_input_is_one_error_line_and_no_output() {
                 "simple polygon",
             ],
         ),
+        (
+            vec![
+                "case-a",
+                "--set",
+                "mesh.nx=200",
+                "--set",
+                "mesh.ny=40",
+                "--set",
+                "output.frame_every=1",
+                "--dt",
+                "1e-5",
+                "--steps",
+                "10000000",
+            ],
+            vec![
+                "output.frames: 10000002 frames of 32482 numbers",
+                "raise output.frame_every",
+            ],
+        ),
         // Upper bounds (fem_solvers::limits, fem_cases::run::MAX_THREADS, MAX_GIF_FRAMES):
         // each a one-line error naming the field, never a hang or an allocation failure.
         (
