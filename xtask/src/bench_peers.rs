@@ -20,7 +20,7 @@ use std::process::Command;
 
 use serde_json::Value;
 
-use crate::util::{cargo_program, command_line, cpu_name, root, write_atomic};
+use crate::util::{build_release, command_line, cpu_name, write_atomic};
 
 /// Alternating rounds per configuration.
 pub const ROUNDS: usize = 3;
@@ -54,7 +54,10 @@ pub fn run(args: &[&str]) -> Result<(), String> {
         }
     }
     let python = python()?;
-    let ours = build_throughput()?;
+    let ours = build_release(
+        &["-p", "fem-solvers", "--example", "throughput"],
+        "throughput",
+    )?;
     let sizes: &[_] = if quick { &SIZES[..1] } else { &SIZES };
     let rounds = if quick { 1 } else { ROUNDS };
 
@@ -172,31 +175,6 @@ fn python() -> Result<PathBuf, String> {
             py.display()
         ))
     }
-}
-
-fn build_throughput() -> Result<PathBuf, String> {
-    let cargo = cargo_program();
-    let args = [
-        "build",
-        "--release",
-        "-p",
-        "fem-solvers",
-        "--example",
-        "throughput",
-    ];
-    eprintln!("$ cargo {}", args.join(" "));
-    let status = Command::new(&cargo)
-        .args(args)
-        .current_dir(root())
-        .status()
-        .map_err(|e| format!("cannot run {cargo}: {e}"))?;
-    if !status.success() {
-        return Err(format!("`cargo {}` failed ({status})", args.join(" ")));
-    }
-    let target = std::env::var_os("CARGO_TARGET_DIR")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| root().join("target"));
-    Ok(target.join("release/examples/throughput"))
 }
 
 /// `program args`, under `taskset -c 1` for one thread; the `RESULT` lines of its output.

@@ -21,6 +21,32 @@ pub fn cargo_program() -> String {
     std::env::var("CARGO").unwrap_or_else(|_| "cargo".to_owned())
 }
 
+/// `cargo build --release ARGS` from the workspace root, and the executable of target `name`
+/// that cargo reports (so `CARGO_TARGET_DIR` and `--target-dir` settings are honoured).
+pub fn build_release(args: &[&str], name: &str) -> Result<PathBuf, String> {
+    let cargo = cargo_program();
+    let mut all = vec!["build", "--release"];
+    all.extend(args);
+    all.push("--message-format=json-render-diagnostics");
+    eprintln!("$ cargo {}", all.join(" "));
+    let out = Command::new(&cargo)
+        .args(&all)
+        .current_dir(root())
+        .stderr(Stdio::inherit())
+        .output()
+        .map_err(|e| format!("cannot run {cargo}: {e}"))?;
+    if !out.status.success() {
+        return Err(format!("building {name} failed ({})", out.status));
+    }
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    stdout
+        .lines()
+        .filter_map(|l| serde_json::from_str::<Value>(l).ok())
+        .filter(|m| m["reason"] == "compiler-artifact" && m["target"]["name"] == name)
+        .find_map(|m| m["executable"].as_str().map(PathBuf::from))
+        .ok_or_else(|| format!("cargo build did not report the {name} executable"))
+}
+
 /// The release `fem2d` binary, built once per xtask invocation.
 pub struct Fem2d {
     /// The release executable.
@@ -41,33 +67,7 @@ impl Fem2d {
     /// `cargo build --release -p fem2d --bin fem2d`, then the executable cargo reports
     /// (so `CARGO_TARGET_DIR` and `--target-dir` settings are honoured).
     pub fn build() -> Result<Self, String> {
-        let cargo = cargo_program();
-        let args = [
-            "build",
-            "--release",
-            "-p",
-            "fem2d",
-            "--bin",
-            "fem2d",
-            "--message-format=json-render-diagnostics",
-        ];
-        eprintln!("$ cargo {}", args.join(" "));
-        let out = Command::new(&cargo)
-            .args(args)
-            .current_dir(root())
-            .stderr(Stdio::inherit())
-            .output()
-            .map_err(|e| format!("cannot run {cargo}: {e}"))?;
-        if !out.status.success() {
-            return Err(format!("building fem2d failed ({})", out.status));
-        }
-        let stdout = String::from_utf8_lossy(&out.stdout);
-        let exe = stdout
-            .lines()
-            .filter_map(|l| serde_json::from_str::<Value>(l).ok())
-            .filter(|m| m["reason"] == "compiler-artifact" && m["target"]["name"] == "fem2d")
-            .find_map(|m| m["executable"].as_str().map(PathBuf::from))
-            .ok_or("cargo build did not report the fem2d executable")?;
+        let exe = build_release(&["-p", "fem2d", "--bin", "fem2d"], "fem2d")?;
         Ok(Fem2d { exe })
     }
 

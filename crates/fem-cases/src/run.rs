@@ -125,13 +125,7 @@ fn run_in_pool(
             })?;
         }
         if scene.scene.output.frames {
-            // Frames recorded: the first, one every `frame_every` steps (every increment when
-            // load stepping), and the last.
-            let s = &scene.scene;
-            let planned = match s.solver.kind.capabilities().clock {
-                fem_solvers::Clock::LoadFactor => s.solver.planned_steps() + 1,
-                fem_solvers::Clock::Time => s.solver.steps / s.output.frame_every.max(1) + 2,
-            };
+            let planned = scene.scene.planned_frames();
             frames = Some(FramesJsonl::create(dir, planned)?);
         }
         if options.vtk {

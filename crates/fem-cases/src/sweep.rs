@@ -196,11 +196,7 @@ pub fn parse_sweep(text: &str, origin: &str, base_dir: &Path) -> Result<Sweep, S
     }
     if let Some(d) = spec.duration {
         if !(d.is_finite() && d > 0.0 && d <= MAX_DURATION) {
-            let shown = if d.to_string().len() > 24 {
-                format!("{d:e}")
-            } else {
-                d.to_string()
-            };
+            let shown = fem_core::math::readable(d);
             return Err(SceneError::Scene(format!(
                 "{origin}: duration = {shown}: must be a finite number > 0 and at most {MAX_DURATION:e} (s)"
             )));

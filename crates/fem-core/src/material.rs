@@ -69,7 +69,7 @@ impl<'de> serde::Deserialize<'de> for PlaneModel {
 
 /// An invalid material constant: names the field, the value and the rule it breaks.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
-#[error("material.{field} = {}: {rule}", compact(*value))]
+#[error("material.{field} = {}: {rule}", crate::math::readable(*value))]
 pub struct MaterialError {
     /// Field name as in scene files (`youngs_modulus`, `poisson_ratio`, `density`).
     pub field: &'static str,
@@ -77,17 +77,6 @@ pub struct MaterialError {
     pub value: Real,
     /// What the value must satisfy.
     pub rule: &'static str,
-}
-
-/// `v` as Rust prints it, or in scientific notation when that would be long (5e-324, not 324
-/// digits).
-fn compact(v: Real) -> String {
-    let plain = v.to_string();
-    if plain.len() > 24 {
-        format!("{v:e}")
-    } else {
-        plain
-    }
 }
 
 /// The Lamé parameters `mu` (shear modulus) and `lambda`, in Pa.

@@ -93,6 +93,17 @@ pub fn linear_map_matrix(map: impl Fn(&Mat2) -> Mat2) -> Mat4 {
     m
 }
 
+/// `v` as Rust prints it, or in scientific notation when that would be long: error messages
+/// show `5e-324` and `-1e300`, not hundreds of digits.
+pub fn readable(v: Real) -> String {
+    let plain = v.to_string();
+    if plain.len() > 24 {
+        format!("{v:e}")
+    } else {
+        plain
+    }
+}
+
 /// The natural logarithm, correct to within one unit in the last place, in plain IEEE
 /// arithmetic and no branches, so that the batched kernels vectorise it and every machine,
 /// instruction set and WebAssembly build computes the same bits (see [`crate::simd`]).

@@ -354,6 +354,18 @@ pub struct LoadedScene {
     pub base_dir: PathBuf,
 }
 
+impl Scene {
+    /// The frames a complete run records: the first, one every `output.frame_every` steps and
+    /// the last (at most; fewer when the last step falls on the cadence), or for a load-stepping
+    /// solver one per nominal load increment and the first. Sizes the frame outputs.
+    pub fn planned_frames(&self) -> u64 {
+        match self.solver.kind.capabilities().clock {
+            fem_solvers::Clock::LoadFactor => self.solver.planned_steps() + 1,
+            fem_solvers::Clock::Time => self.solver.steps / self.output.frame_every.max(1) + 2,
+        }
+    }
+}
+
 impl LoadedScene {
     /// Resolve a path given in the scene.
     pub fn resolve(&self, path: &Path) -> PathBuf {

@@ -198,24 +198,41 @@ pub fn first_crossing(polygon: &[Vec2]) -> Option<(usize, usize)> {
     None
 }
 
-/// Whether `p` lies strictly inside the closed polygon (even-odd rule), at least `margin` away
-/// from its boundary.
-pub(crate) fn strictly_inside(polygon: &[Vec2], p: Vec2, margin: Real) -> bool {
+/// Whether `q` lies inside the closed polygon (even-odd rule), the squared distance to its
+/// nearest boundary point, and that point. The one polygon query of contact detection
+/// ([`Obstacle`]'s penetration) and of the overlap checks at `t = 0`.
+#[inline(always)]
+fn polygon_query(polygon: &[Vec2], q: Vec2) -> (bool, Real, Vec2) {
     let n = polygon.len();
     let mut inside = false;
+    let mut best = Real::INFINITY;
+    let mut closest = Vec2::zeros();
     for k in 0..n {
-        let (a, b) = (polygon[k], polygon[(k + 1) % n]);
-        // Distance to the edge.
-        let ab = b - a;
-        let t = ((p - a).dot(&ab) / ab.norm_squared().max(Real::MIN_POSITIVE)).clamp(0.0, 1.0);
-        if (a + ab * t - p).norm() <= margin {
-            return false;
+        let a = polygon[k];
+        let b = polygon[(k + 1) % n];
+        if (a.y > q.y) != (b.y > q.y) {
+            let xc = a.x + (q.y - a.y) / (b.y - a.y) * (b.x - a.x);
+            if q.x < xc {
+                inside = !inside;
+            }
         }
-        if (a.y > p.y) != (b.y > p.y) && p.x < a.x + (p.y - a.y) / (b.y - a.y) * (b.x - a.x) {
-            inside = !inside;
+        let e = b - a;
+        let t = ((q - a).dot(&e) / e.norm_squared()).clamp(0.0, 1.0);
+        let c = a + e * t;
+        let dist2 = (c - q).norm_squared();
+        if dist2 < best {
+            best = dist2;
+            closest = c;
         }
     }
-    inside
+    (inside, best, closest)
+}
+
+/// Whether `p` lies inside the closed polygon by more than `margin` (its distance to the
+/// boundary): what contact would push out, as opposed to a point touching the boundary.
+pub(crate) fn strictly_inside(polygon: &[Vec2], p: Vec2, margin: Real) -> bool {
+    let (inside, dist2, _) = polygon_query(polygon, p);
+    inside && dist2 > margin * margin
 }
 
 impl Obstacle {
@@ -404,28 +421,7 @@ impl Obstacle {
             frame.c * d.x + frame.s * d.y,
             -frame.s * d.x + frame.c * d.y,
         );
-        let n = self.local.len();
-        let mut inside = false;
-        let mut best = Real::INFINITY;
-        let mut closest = Vec2::zeros();
-        for k in 0..n {
-            let a = self.local[k];
-            let b = self.local[(k + 1) % n];
-            if (a.y > q.y) != (b.y > q.y) {
-                let xc = a.x + (q.y - a.y) / (b.y - a.y) * (b.x - a.x);
-                if q.x < xc {
-                    inside = !inside;
-                }
-            }
-            let e = b - a;
-            let t = ((q - a).dot(&e) / e.norm_squared()).clamp(0.0, 1.0);
-            let c = a + e * t;
-            let dist2 = (c - q).norm_squared();
-            if dist2 < best {
-                best = dist2;
-                closest = c;
-            }
-        }
+        let (inside, best, closest) = polygon_query(&self.local, q);
         if !inside || best == 0.0 {
             return None;
         }

@@ -2,7 +2,7 @@
 //! (named step and vertex). Every message is a single line; nothing in this crate panics on
 //! bad input.
 
-use fem_core::math::Real;
+use fem_core::math::{Real, readable};
 
 /// Why a model could not be built or a step could not be taken.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
@@ -147,7 +147,7 @@ pub(crate) fn check_positive(field: &str, value: Real) -> Result<(), SolverError
     } else {
         Err(SolverError::invalid(
             field,
-            value,
+            readable(value),
             "must be a finite number > 0",
         ))
     }
@@ -160,13 +160,13 @@ pub(crate) fn check_non_negative(field: &str, value: Real) -> Result<(), SolverE
     } else {
         Err(SolverError::invalid(
             field,
-            value,
+            readable(value),
             "must be a finite number >= 0",
         ))
     }
 }
 
-/// `Ok` when `n >= 1`.
+/// `Ok` when `1 <= n <= max`.
 pub(crate) fn check_count(field: &str, n: usize, max: usize) -> Result<(), SolverError> {
     if n == 0 {
         Err(SolverError::invalid(field, n, "must be at least 1"))
@@ -195,7 +195,7 @@ pub(crate) fn check_relaxation(field: &str, value: Real) -> Result<(), SolverErr
     } else {
         Err(SolverError::invalid(
             field,
-            value,
+            readable(value),
             "must lie in the open interval (0, 2)",
         ))
     }

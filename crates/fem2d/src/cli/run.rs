@@ -130,12 +130,7 @@ pub fn run(args: &RunArgs) -> Result<(), String> {
     }
     let scene = load_case_or_file(&args.scene.scene, &overrides).map_err(|e| e.to_string())?;
     let s = &scene.scene;
-    // Frames recorded by the run: the first, one every `frame_every` steps (every increment
-    // when load stepping), and the last.
-    let recorded = match s.solver.kind.capabilities().clock {
-        Clock::LoadFactor => s.solver.planned_steps() + 1,
-        Clock::Time => s.solver.steps / s.output.frame_every.max(1) + 2,
-    };
+    let recorded = s.planned_frames();
     let gif_every = args
         .gif_every
         .unwrap_or_else(|| recorded.div_ceil(120).max(1) as usize);
