@@ -310,3 +310,216 @@ pub fn interrupted() -> Vec<PathBuf> {
     std::mem::forget(active);
     targets
 }
+
+/// Prefix of the hidden staging subdirectory of a [`FilesInto`].
+const FILES_STAGING: &str = ".fem2d-staging-";
+
+/// Several files written into a directory that also holds other files (`fem2d merge` beside
+/// the shard files it reads, `fem2d figures` into `docs/figures`), all or none: the same lock
+/// as [`OutDir`] (so no other fem2d writer of that directory runs at the same time), the files
+/// written into a hidden staging subdirectory (`.fem2d-staging-PID-N`), and moved into the
+/// directory by one rename each only when every one was written. An error, a drop or an
+/// interruption ([`interrupted`]) removes the staging subdirectory and leaves the directory's
+/// files as they were; one left by a killed process is removed by the next writer.
+#[derive(Debug)]
+pub struct FilesInto {
+    target: PathBuf,
+    staging: PathBuf,
+    lock: PathBuf,
+    done: bool,
+}
+
+impl FilesInto {
+    /// Lock `target` (created if missing), remove leftover staging subdirectories and create a
+    /// fresh one. Errors name the path.
+    pub fn begin(target: &Path) -> Result<FilesInto, SceneError> {
+        let target = std::path::absolute(target).map_err(|e| io(target, "bad path", e))?;
+        let (Some(parent), Some(name)) = (target.parent(), target.file_name()) else {
+            return Err(SceneError::Usage(format!(
+                "--out {}: name a directory",
+                target.display()
+            )));
+        };
+        let name = name.to_string_lossy().into_owned();
+        if let Ok(meta) = std::fs::symlink_metadata(&target) {
+            if !meta.is_dir() {
+                return Err(SceneError::Usage(format!(
+                    "--out {}: exists and is not a directory",
+                    target.display()
+                )));
+            }
+        }
+        std::fs::create_dir_all(&target)
+            .map_err(|e| io(&target, "cannot create the directory", e))?;
+        let lock = parent.join(format!(".{name}.lock"));
+        let mut active = ACTIVE.lock().unwrap_or_else(|p| p.into_inner());
+        take_lock(&lock, &target)?;
+        let prepared = (|| {
+            // The lock is held, so every staging subdirectory found is a killed writer's.
+            let entries = std::fs::read_dir(&target).map_err(|e| io(&target, "cannot list", e))?;
+            for entry in entries.flatten() {
+                if entry
+                    .file_name()
+                    .to_string_lossy()
+                    .starts_with(FILES_STAGING)
+                {
+                    let p = entry.path();
+                    std::fs::remove_dir_all(&p)
+                        .map_err(|e| io(&p, "cannot remove a leftover", e))?;
+                }
+            }
+            let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+            let staging = target.join(format!("{FILES_STAGING}{}-{n}", std::process::id()));
+            std::fs::create_dir(&staging)
+                .map_err(|e| io(&staging, "cannot create the staging directory", e))?;
+            Ok(staging)
+        })();
+        match prepared {
+            Ok(staging) => {
+                active.push((staging.clone(), lock.clone(), target.clone()));
+                Ok(FilesInto {
+                    target,
+                    staging,
+                    lock,
+                    done: false,
+                })
+            }
+            Err(e) => {
+                let _ = std::fs::remove_file(&lock);
+                Err(e)
+            }
+        }
+    }
+
+    /// Where the files are written until [`FilesInto::commit`].
+    pub fn path(&self) -> &Path {
+        &self.staging
+    }
+
+    /// Move every file of the staging subdirectory into the directory (`last`, if given, is
+    /// moved after all others, so its presence means the others are there), remove the
+    /// staging subdirectory and release the lock. A name that exists in the directory as
+    /// anything but a regular file (a directory, a symbolic link, a device) is refused before
+    /// anything is moved.
+    pub fn commit(mut self, last: Option<&str>) -> Result<(), SceneError> {
+        let mut names: Vec<std::ffi::OsString> = std::fs::read_dir(&self.staging)
+            .map_err(|e| io(&self.staging, "cannot list", e))?
+            .flatten()
+            .map(|e| e.file_name())
+            .collect();
+        names.sort();
+        if let Some(last) = last {
+            if let Some(k) = names.iter().position(|n| n == last) {
+                let n = names.remove(k);
+                names.push(n);
+            }
+        }
+        for name in &names {
+            let dest = self.target.join(name);
+            if let Ok(meta) = std::fs::symlink_metadata(&dest) {
+                if !meta.file_type().is_file() {
+                    return Err(SceneError::Usage(format!(
+                        "{}: exists and is not a regular file; fem2d replaces regular files only",
+                        dest.display()
+                    )));
+                }
+            }
+        }
+        let mut active = ACTIVE.lock().unwrap_or_else(|p| p.into_inner());
+        for name in &names {
+            let dest = self.target.join(name);
+            std::fs::rename(self.staging.join(name), &dest)
+                .map_err(|e| io(&dest, "cannot move into place", e))?;
+        }
+        let _ = std::fs::remove_dir_all(&self.staging);
+        let _ = std::fs::remove_file(&self.lock);
+        active.retain(|(s, _, _)| s != &self.staging);
+        self.done = true;
+        Ok(())
+    }
+}
+
+impl Drop for FilesInto {
+    fn drop(&mut self) {
+        if !self.done {
+            let mut active = ACTIVE.lock().unwrap_or_else(|p| p.into_inner());
+            let _ = std::fs::remove_dir_all(&self.staging);
+            let _ = std::fs::remove_file(&self.lock);
+            active.retain(|(s, _, _)| s != &self.staging);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scratch(name: &str) -> PathBuf {
+        let d = std::env::temp_dir().join(format!("fem2d-outdir-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        std::fs::create_dir_all(&d).unwrap();
+        d
+    }
+
+    #[test]
+    fn files_into_moves_all_files_or_none() {
+        let d = scratch("files").join("out");
+        std::fs::create_dir_all(&d).unwrap();
+        std::fs::write(d.join("shard-0-of-1.json"), "kept").unwrap();
+        std::fs::write(d.join("a.txt"), "old").unwrap();
+        // Dropped before commit: nothing changes, no staging subdirectory remains.
+        let f = FilesInto::begin(&d).unwrap();
+        std::fs::write(f.path().join("a.txt"), "new").unwrap();
+        drop(f);
+        assert_eq!(std::fs::read_to_string(d.join("a.txt")).unwrap(), "old");
+        assert_eq!(std::fs::read_dir(&d).unwrap().count(), 2);
+        // Committed: every file is in place and the others are untouched.
+        let f = FilesInto::begin(&d).unwrap();
+        std::fs::write(f.path().join("a.txt"), "new").unwrap();
+        std::fs::write(f.path().join("b.txt"), "new").unwrap();
+        f.commit(Some("a.txt")).unwrap();
+        assert_eq!(std::fs::read_to_string(d.join("a.txt")).unwrap(), "new");
+        assert_eq!(std::fs::read_to_string(d.join("b.txt")).unwrap(), "new");
+        assert_eq!(
+            std::fs::read_to_string(d.join("shard-0-of-1.json")).unwrap(),
+            "kept"
+        );
+        assert_eq!(std::fs::read_dir(&d).unwrap().count(), 3);
+        assert!(!d.with_file_name(".out.lock").exists());
+    }
+
+    #[test]
+    fn files_into_refuses_to_replace_what_is_not_a_regular_file_and_leaves_all_as_it_was() {
+        let d = scratch("special").join("out");
+        std::fs::create_dir_all(d.join("b.txt")).unwrap();
+        let f = FilesInto::begin(&d).unwrap();
+        std::fs::write(f.path().join("a.txt"), "new").unwrap();
+        std::fs::write(f.path().join("b.txt"), "new").unwrap();
+        let e = f.commit(None).unwrap_err().to_string();
+        assert!(
+            e.contains("b.txt") && e.contains("not a regular file"),
+            "{e}"
+        );
+        assert!(!d.join("a.txt").exists());
+        assert!(d.join("b.txt").is_dir());
+        assert_eq!(std::fs::read_dir(&d).unwrap().count(), 1);
+    }
+
+    #[test]
+    fn files_into_removes_a_killed_writers_staging_and_respects_a_live_lock() {
+        let d = scratch("killed").join("out");
+        std::fs::create_dir_all(d.join(".fem2d-staging-999999999-0")).unwrap();
+        std::fs::write(d.join(".fem2d-staging-999999999-0/x"), "x").unwrap();
+        let f = FilesInto::begin(&d).unwrap();
+        assert_eq!(
+            std::fs::read_dir(&d).unwrap().count(),
+            1,
+            "only the new staging"
+        );
+        // This process holds the lock, so a second writer of the same directory is refused.
+        let e = FilesInto::begin(&d).unwrap_err().to_string();
+        assert!(e.contains("another fem2d process"), "{e}");
+        drop(f);
+        assert_eq!(std::fs::read_dir(&d).unwrap().count(), 0);
+    }
+}

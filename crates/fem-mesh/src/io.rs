@@ -64,13 +64,17 @@ impl Staged {
             name.to_string_lossy(),
             std::process::id()
         ));
+        STAGED
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .push(tmp.clone());
         let result = (|| {
             let mut file = std::fs::File::create(&tmp)?;
             file.write_all(bytes)?;
             file.sync_all()
         })();
         if let Err(e) = result {
-            let _ = std::fs::remove_file(&tmp);
+            forget_staged(&tmp);
             return Err(MeshError::io(path, e));
         }
         Ok(Staged {
@@ -82,8 +86,13 @@ impl Staged {
 
     /// Rename into place.
     pub fn commit(mut self) -> Result<()> {
+        // Held across the rename, so an interruption never removes a file already in place.
+        let mut staged = STAGED.lock().unwrap_or_else(|p| p.into_inner());
         let result = std::fs::rename(&self.tmp, &self.dest);
         self.done = result.is_ok();
+        if self.done {
+            staged.retain(|t| t != &self.tmp);
+        }
         result.map_err(|e| MeshError::io(&self.dest, e))
     }
 }
@@ -91,9 +100,33 @@ impl Staged {
 impl Drop for Staged {
     fn drop(&mut self) {
         if !self.done {
-            let _ = std::fs::remove_file(&self.tmp);
+            forget_staged(&self.tmp);
         }
     }
+}
+
+/// Temporary files of [`Staged`] writes not yet renamed into place, for [`interrupted`].
+static STAGED: std::sync::Mutex<Vec<std::path::PathBuf>> = std::sync::Mutex::new(Vec::new());
+
+fn forget_staged(tmp: &Path) {
+    let mut staged = STAGED.lock().unwrap_or_else(|p| p.into_inner());
+    let _ = std::fs::remove_file(tmp);
+    staged.retain(|t| t != tmp);
+}
+
+/// Remove the temporary file of every [`Staged`] write not yet renamed into place, so that an
+/// interrupted command leaves none behind. For a signal handler, which then exits: the list
+/// stays locked, so no rename starts afterwards.
+pub fn interrupted() {
+    let staged = STAGED.lock().unwrap_or_else(|p| p.into_inner());
+    // A thread may be creating one of them right now: look again a few times.
+    for _ in 0..5 {
+        for tmp in staged.iter() {
+            let _ = std::fs::remove_file(tmp);
+        }
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    }
+    std::mem::forget(staged);
 }
 
 /// Mesh JSON text of `mesh` (one vertex or triangle per line).

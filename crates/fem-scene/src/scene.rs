@@ -629,6 +629,16 @@ impl LoadedScene {
         if v.steps == 0 {
             return Err(self.error("solver.steps", 0, "must be >= 1"));
         }
+        if v.steps > fem_solvers::limits::MAX_STEPS {
+            return Err(self.error(
+                "solver.steps",
+                v.steps,
+                &format!(
+                    "must be at most {} (fem_solvers::limits::MAX_STEPS)",
+                    fem_solvers::limits::MAX_STEPS
+                ),
+            ));
+        }
         // The solvers' own rules, each in its parameter struct (fem-solvers), for every
         // solver's parameters: a scene is valid whichever solver it is later run with.
         v.validate()
@@ -804,6 +814,17 @@ impl LoadedScene {
         }
         if s.output.frame_every == 0 {
             return Err(self.error("output.frame_every", 0, "must be >= 1"));
+        }
+        let frames = s.planned_frames();
+        if frames > fem_solvers::limits::MAX_RECORDED_FRAMES {
+            return Err(self.error(
+                "output.frame_every",
+                s.output.frame_every,
+                &format!(
+                    "records {frames} frames, more than {} (fem_solvers::limits::MAX_RECORDED_FRAMES); raise it",
+                    fem_solvers::limits::MAX_RECORDED_FRAMES
+                ),
+            ));
         }
         Ok(())
     }

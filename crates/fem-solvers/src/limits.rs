@@ -3,6 +3,12 @@
 //! field (`xpbd.iterations = 4294967296: must be at most 100000 (fem_solvers::limits)`).
 //! Each bound is far above any useful setting.
 
+/// Time steps (or nominal load increments' clock steps) of one run: 1e9 steps of the smallest
+/// mesh take hours.
+pub const MAX_STEPS: u64 = 1_000_000_000;
+/// Frames a run records in memory (a time and each probe's displacement per frame): 1e7
+/// frames of a few probes hold about 1 GB.
+pub const MAX_RECORDED_FRAMES: u64 = 10_000_000;
 /// Constraint iterations per (sub)step of PBD and XPBD.
 pub const MAX_ITERATIONS: usize = 100_000;
 /// Substeps per step of PBD and XPBD.

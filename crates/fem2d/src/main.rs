@@ -70,6 +70,7 @@ fn main() -> std::process::ExitCode {
     // An interruption leaves every output directory as it was before the command (see
     // fem_cases::outdir): the staging directories go, the previous outputs stay.
     let _ = ctrlc::set_handler(|| {
+        fem_mesh::io::interrupted();
         let targets = fem_cases::outdir::interrupted();
         let names: Vec<String> = targets.iter().map(|t| t.display().to_string()).collect();
         if names.is_empty() {

@@ -6,7 +6,7 @@ use std::time::Instant;
 
 use clap::Args;
 use fem_cases::figures::{run_cases, write_figures};
-use fem_cases::outdir::OutDir;
+use fem_cases::outdir::{FilesInto, OutDir};
 use fem_cases::report::{ReportOptions, write_report};
 
 /// Flags of `fem2d report`.
@@ -83,9 +83,12 @@ pub fn run_report(args: &ReportArgs) -> Result<(), String> {
 pub fn run_figures(args: &FiguresArgs) -> Result<(), String> {
     check_threads(args.threads)?;
     let start = Instant::now();
+    // All pictures or none; the directory's other files stay.
+    let out = FilesInto::begin(&args.out).map_err(|e| e.to_string())?;
     let runs = run_cases(args.threads, true, |what| eprintln!("figures: {what}..."))
         .map_err(|e| e.to_string())?;
-    let figures = write_figures(&runs, &args.out).map_err(|e| e.to_string())?;
+    let figures = write_figures(&runs, out.path()).map_err(|e| e.to_string())?;
+    out.commit(None).map_err(|e| e.to_string())?;
     for f in &figures {
         println!("{}: {}", args.out.join(&f.file).display(), f.title);
     }

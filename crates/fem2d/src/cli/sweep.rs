@@ -4,6 +4,7 @@
 use std::path::PathBuf;
 
 use clap::Args;
+use fem_cases::outdir::FilesInto;
 use fem_cases::run::write_atomic;
 use fem_cases::sweep::{load_sweep, merge, parse_shard, write_shard};
 
@@ -108,14 +109,15 @@ pub fn run_merge(args: &MergeArgs) -> Result<(), String> {
         }
     }
     let merged = merge(&files).map_err(|e| e.to_string())?;
-    std::fs::create_dir_all(&args.out)
-        .map_err(|e| format!("{}: cannot create the directory: {e}", args.out.display()))?;
+    // All three or none, sweep.json last (beside the shard files, which stay).
+    let out = FilesInto::begin(&args.out).map_err(|e| e.to_string())?;
     let json = serde_json::to_string_pretty(&merged).map_err(|e| e.to_string())?;
-    write_atomic(&args.out.join("sweep.json"), json.as_bytes()).map_err(|e| e.to_string())?;
-    write_atomic(&args.out.join("sweep.csv"), merged.to_csv().as_bytes())
+    write_atomic(&out.path().join("sweep.json"), json.as_bytes()).map_err(|e| e.to_string())?;
+    write_atomic(&out.path().join("sweep.csv"), merged.to_csv().as_bytes())
         .map_err(|e| e.to_string())?;
     let md = merged.to_markdown();
-    write_atomic(&args.out.join("sweep.md"), md.as_bytes()).map_err(|e| e.to_string())?;
+    write_atomic(&out.path().join("sweep.md"), md.as_bytes()).map_err(|e| e.to_string())?;
+    out.commit(Some("sweep.json")).map_err(|e| e.to_string())?;
     print!("{md}");
     println!(
         "merged {} shard file(s), {} jobs; wrote sweep.json, sweep.csv, sweep.md in {}",

@@ -216,3 +216,172 @@ fn out_is_never_a_directory_fem2d_did_not_write_and_live_locks_are_respected() {
     assert_eq!(whole_run(&out), ("stvk".into(), 10));
     assert!(!lock.exists());
 }
+
+/// Starts `fem2d ARGS` with stdout discarded and stderr kept.
+fn spawn(args: &[&str]) -> Child {
+    Command::new(env!("CARGO_BIN_EXE_fem2d"))
+        .args(args)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("fem2d starts")
+}
+
+/// `points` SIGINTs at pseudo-random times over one run of `args(k)` (`full` long): each ends
+/// the process with exit 130 and "error: interrupted", or lets it finish, and `check` then
+/// sees the directory `dir` of the outputs.
+fn interrupt_many_times(
+    points: u32,
+    full: Duration,
+    args: impl Fn(u32) -> Vec<String>,
+    check: impl Fn(u32, &str),
+) {
+    let mut state = 0x9e37_79b9_u64;
+    for k in 0..points {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        let delay = full.mul_f64((state >> 11) as f64 / (1u64 << 53) as f64 * 1.1);
+        let a = args(k);
+        let a: Vec<&str> = a.iter().map(String::as_str).collect();
+        let mut child = spawn(&a);
+        std::thread::sleep(delay);
+        let _ = Command::new("kill")
+            .args(["-INT", &child.id().to_string()])
+            .status();
+        let status = child.wait().unwrap();
+        let err = std::io::read_to_string(child.stderr.take().unwrap()).unwrap();
+        let early = std::os::unix::process::ExitStatusExt::signal(&status) == Some(2);
+        assert!(
+            early || status.success() || status.code() == Some(130),
+            "point {k} ({delay:?}): {status} {err}"
+        );
+        if status.code() == Some(130) {
+            assert!(err.contains("error: interrupted"), "{err}");
+        }
+        check(k, &format!("point {k} ({delay:?}), {status}"));
+    }
+}
+
+/// The names in `dir`, sorted (hidden ones included).
+fn names(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    v.sort();
+    v
+}
+
+/// `fem2d mesh` with three outputs interrupted at 20 points: the three files always describe
+/// one mesh (the previous one or the new one) and no temporary file is left.
+#[test]
+fn an_interrupted_mesh_leaves_its_three_outputs_of_one_mesh_and_no_temporary_file() {
+    let dir = scratch("interrupted-mesh");
+    let args = |k: u32| -> Vec<String> {
+        // Alternating bounds on the area, so consecutive meshes differ in size.
+        let area = if k % 2 == 0 { "1e-6" } else { "1.3e-6" };
+        [
+            "mesh",
+            "--builtin-body",
+            "--max-steiner",
+            "1000000",
+            "--max-area",
+            area,
+            "-o",
+            arg(&dir.join("m.json")),
+            "--msh",
+            arg(&dir.join("m.msh")),
+            "--vtk",
+            arg(&dir.join("m.vtk")),
+        ]
+        .map(String::from)
+        .to_vec()
+    };
+    let one_mesh = |context: &str| {
+        assert_eq!(names(&dir), ["m.json", "m.msh", "m.vtk"], "{context}");
+        let vertices = json(&dir.join("m.json"))["vertices"]
+            .as_array()
+            .unwrap()
+            .len();
+        let msh = read(&dir.join("m.msh"));
+        let nodes: usize = msh
+            .lines()
+            .skip_while(|l| *l != "$Nodes")
+            .nth(1)
+            .unwrap()
+            .parse()
+            .unwrap();
+        let vtk = read(&dir.join("m.vtk"));
+        let points: usize = vtk
+            .lines()
+            .find_map(|l| l.strip_prefix("POINTS "))
+            .and_then(|l| l.split_whitespace().next())
+            .unwrap()
+            .parse()
+            .unwrap();
+        assert_eq!((nodes, points), (vertices, vertices), "{context}");
+    };
+    let t = Instant::now();
+    let a = args(1);
+    let a: Vec<&str> = a.iter().map(String::as_str).collect();
+    assert!(spawn(&a).wait().unwrap().success());
+    let full = t.elapsed();
+    one_mesh("first run");
+    interrupt_many_times(20, full, args, |_, context| one_mesh(context));
+}
+
+/// `fem2d figures` and `fem2d report` interrupted at 5 and 3 points (each run takes seconds
+/// in a test build; the run test above covers the report's kind of output directory 50
+/// times): the figures directory holds the whole set (its other files untouched) and the
+/// report directory a whole report, with nothing left beside or inside them.
+#[test]
+fn interrupted_figures_and_report_leave_whole_outputs_and_nothing_else() {
+    let root = scratch("interrupted-figures");
+    let figs = root.join("figures");
+    std::fs::create_dir_all(&figs).unwrap();
+    std::fs::write(figs.join("notes.txt"), "keep me").unwrap();
+    let t = Instant::now();
+    let figures_args = |_: u32| -> Vec<String> {
+        ["figures", "--threads", "1", "--out", arg(&figs)]
+            .map(String::from)
+            .to_vec()
+    };
+    let a = figures_args(0);
+    let a: Vec<&str> = a.iter().map(String::as_str).collect();
+    assert!(spawn(&a).wait().unwrap().success());
+    let full = t.elapsed();
+    let all = names(&figs);
+    assert!(
+        all.len() > 10 && all.contains(&"notes.txt".to_owned()),
+        "{all:?}"
+    );
+    interrupt_many_times(5, full, figures_args, |_, context| {
+        assert_eq!(names(&figs), all, "{context}");
+        assert_eq!(names(&root), ["figures"], "{context}");
+    });
+    assert_eq!(read(&figs.join("notes.txt")), "keep me");
+
+    let report = root.join("report");
+    let report_args = |_: u32| -> Vec<String> {
+        ["report", "--threads", "1", "--out", arg(&report)]
+            .map(String::from)
+            .to_vec()
+    };
+    let t = Instant::now();
+    let a = report_args(0);
+    let a: Vec<&str> = a.iter().map(String::as_str).collect();
+    assert!(spawn(&a).wait().unwrap().success());
+    let full = t.elapsed();
+    let all = names(&report);
+    assert!(all.contains(&"index.html".to_owned()), "{all:?}");
+    interrupt_many_times(3, full, report_args, |_, context| {
+        assert_eq!(names(&report), all, "{context}");
+        assert!(
+            read(&report.join("index.html"))
+                .trim_end()
+                .ends_with("</html>")
+        );
+        assert_eq!(names(&root), ["figures", "report"], "{context}");
+    });
+}

@@ -584,10 +584,10 @@ fn bad_input_is_one_error_line_and_no_output() {
                 "--dt",
                 "1e-5",
                 "--steps",
-                "10000000",
+                "1000000",
             ],
             vec![
-                "output.frames: 10000002 frames of 32482 numbers",
+                "output.frames: 1000002 frames of 32482 numbers",
                 "raise output.frame_every",
             ],
         ),
@@ -636,6 +636,24 @@ fn bad_input_is_one_error_line_and_no_output() {
                 "solver.max_iterations=100000000",
             ],
             vec!["solver.max_iterations = 100000000"],
+        ),
+        (
+            vec!["case-a", "--steps", "10000000000"],
+            vec!["solver.steps = 10000000000", "at most 1000000000"],
+        ),
+        (
+            vec![
+                "case-a",
+                "--set",
+                "output.frames=false",
+                "--steps",
+                "100000000",
+            ],
+            vec![
+                "output.frame_every = 10",
+                "records 10000002 frames",
+                "MAX_RECORDED_FRAMES",
+            ],
         ),
         (
             vec!["case-a", "--gif", "--gif-every", "1", "--steps", "100000"],
