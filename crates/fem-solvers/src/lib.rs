@@ -5,7 +5,8 @@
 //! XPBD (Algorithm II, Eq. 7), with pinned and prescribed vertices, gravity, nodal loads and
 //! boundary tractions, a ground and rigid obstacles; and beyond the paper, implicit Euler
 //! ([`ImplicitStepper`]) and quasi-static equilibrium ([`StaticStepper`]), both by Newton with a
-//! sparse Cholesky factorisation (faer).
+//! sparse Cholesky factorisation (faer), and Vertex Block Descent ([`VbdStepper`]: implicit
+//! Euler's potential minimised vertex by vertex, for real-time frame rates).
 //!
 //! The pieces, kept apart:
 //! - a [`Model`] (mesh, energy, lumped masses, boundary conditions, loads, obstacles): fixed
@@ -14,7 +15,8 @@
 //! - steppers that advance a state by one step of their clock ([`Clock`]: a time step, or for
 //!   the static solver a load increment) and return a [`StepReport`] (min det F, inverted
 //!   elements, iterations, constraint or Newton residual, contacts): [`ExplicitStepper`],
-//!   [`PbdStepper`], [`XpbdStepper`], [`ImplicitStepper`], [`StaticStepper`], all behind the
+//!   [`PbdStepper`], [`XpbdStepper`], [`ImplicitStepper`], [`StaticStepper`], [`VbdStepper`],
+//!   all behind the
 //!   [`Stepper`] trait.
 //!
 //! **The solver registry** ([`registry`]): one list of the solvers, from which [`SolverKind`]
@@ -116,6 +118,7 @@ mod state;
 pub mod statics;
 mod stopwatch;
 pub mod testing;
+pub mod vbd;
 
 use fem_core::energy::Energy;
 use fem_core::math::Real;
@@ -135,6 +138,7 @@ pub use registry::{
 pub use report::StepReport;
 pub use state::State;
 pub use statics::{StaticParams, StaticReport, StaticSolver, StaticStepper};
+pub use vbd::{VbdInit, VbdParams, VbdStats, VbdStepper};
 
 /// A stepper: advances a [`State`] of a [`Model`] by one step of its clock ([`Clock`]): a
 /// time step, or for the static solver a load increment.

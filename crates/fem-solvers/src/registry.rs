@@ -307,6 +307,7 @@ registry! {
     Xpbd => crate::position_based::XpbdStepper,
     Implicit => crate::implicit::ImplicitStepper,
     Static => crate::statics::StaticStepper,
+    Vbd => crate::vbd::VbdStepper,
 }
 
 impl Default for SolverKind {
@@ -394,7 +395,7 @@ mod tests {
         assert_eq!(SolverKind::default(), SolverKind::Explicit);
         assert_eq!(
             "rk4".parse::<SolverKind>().unwrap_err().to_string(),
-            "unknown solver `rk4` (expected one of: explicit, pbd, xpbd, implicit, static)"
+            "unknown solver `rk4` (expected one of: explicit, pbd, xpbd, implicit, static, vbd)"
         );
     }
 

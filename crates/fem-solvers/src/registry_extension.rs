@@ -116,6 +116,7 @@ mod extended {
         Xpbd => crate::position_based::XpbdStepper,
         Implicit => crate::implicit::ImplicitStepper,
         Static => crate::statics::StaticStepper,
+        Vbd => crate::vbd::VbdStepper,
         TwoHalves => crate::registry_extension::TwoHalves,
     }
 }

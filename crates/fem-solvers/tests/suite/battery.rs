@@ -167,8 +167,10 @@ fn equilibrium(kind: SolverKind) {
     assert!(state.v.iter().all(|v| *v == Vec2::zeros()));
 }
 
-/// (b) A step never writes a non-finite value; a failed step leaves the state as it was.
-fn never_non_finite(kind: SolverKind) {
+/// (b) A step never writes a non-finite value; a failed step leaves the state as it was. A
+/// solver that runs the scene without failing says why (`survives`): then every state it
+/// wrote is checked finite and its largest stretch is printed.
+fn never_non_finite(kind: SolverKind, survives: Option<&str>) {
     let mut model = anchored(20, 4, 1000.0);
     model.set_gravity(Vec2::new(0.0, -9.8e8)).unwrap();
     let mut stepper = build(kind, &model, 5e-2, |_| {});
@@ -189,9 +191,19 @@ fn never_non_finite(kind: SolverKind) {
             }
         }
     }
-    // The scene is extreme enough that every solver fails, so the error path is exercised.
-    let failure = failure.unwrap_or_else(|| panic!("{kind}: not driven to failure in 40 steps"));
-    eprintln!("{kind}: {failure}");
+    // The scene is extreme enough that every solver but those that say why fails, so the
+    // error path is exercised.
+    match (failure, survives) {
+        (Some(failure), None) => eprintln!("{kind}: {failure}"),
+        (None, Some(why)) => {
+            let reach = state.x.iter().map(|p| p.norm()).fold(0.0, Real::max);
+            eprintln!(
+                "{kind}: 40 steps, every state finite, farthest vertex at {reach:.3e} m ({why})"
+            );
+        }
+        (Some(failure), Some(_)) => panic!("{kind}: said to survive, but {failure}"),
+        (None, None) => panic!("{kind}: not driven to failure in 40 steps"),
+    }
 }
 
 /// (c) Bit-identical states on 1, 2 and 4 threads.
@@ -358,7 +370,8 @@ macro_rules! battery {
     ($(
         $module:ident => $kind:ident,
         energy_growth: $energy:expr => $energy_why:literal,
-        rollout: $rollout:expr => $rollout_why:literal $(,)?
+        rollout: $rollout:expr => $rollout_why:literal
+        $(, survives_failure_scene: $survives:literal)? $(,)?
     );+ $(;)?) => {
         /// The solvers the battery covers, in its order.
         const BATTERY: &[SolverKind] = &[$(SolverKind::$kind),+];
@@ -378,7 +391,10 @@ macro_rules! battery {
 
                 #[test]
                 fn never_writes_a_non_finite_state() {
-                    never_non_finite(KIND);
+                    #[allow(unused_mut, unused_assignments)]
+                    let mut survives: Option<&str> = None;
+                    $(survives = Some($survives);)?
+                    never_non_finite(KIND, survives);
                 }
 
                 #[test]
@@ -418,6 +434,10 @@ battery! {
     statics => Static,
         energy_growth: 1e-12 => "with no load the equilibrium is the rest shape: energy ends at round-off (measured 7e-23 of the start)",
         rollout: 1e-8 => "the damped rollout has settled to 2e-10 of its swing; both solves stop at their Newton tolerance (static: 1e-8 of the load) (measured 1.6e-11)";
+    vbd => Vbd,
+        energy_growth: 1e-12 => "each sweep lowers implicit Euler's incremental potential (line search), so it dissipates like implicit Euler: never above its start but for round-off (measured 0; ends at 58 %)",
+        rollout: 1e-3 => "10 sweeps per step approximate the implicit Euler step; the unconverged remainder is the gap (measured 1.0e-4)",
+        survives_failure_scene: "a vertex moves only to a finite, lower local potential, so no step produces a non-finite value to fail on";
 }
 
 #[test]

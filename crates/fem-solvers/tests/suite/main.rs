@@ -14,3 +14,4 @@ mod implicit;
 mod position_based;
 mod registry;
 mod statics;
+mod vbd;

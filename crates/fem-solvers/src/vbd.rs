@@ -1,0 +1,733 @@
+//! Vertex Block Descent (Chen, Liu, Yang & Yuksel, "Vertex Block Descent", ACM TOG 43(4),
+//! 2024): implicit Euler's incremental potential minimised one vertex at a time.
+//!
+//! Each (sub)step of length `h` minimises the potential implicit Euler minimises
+//! ([`crate::implicit`]),
+//!
+//! `G(x) = sum_i m_i / (2 h^2) |x_i - x_hat_i|^2 - sum_i f_i . x_i + sum_e a_e psi(F_e)`,
+//! `x_hat = x + h v`, `f` = gravity `m g` plus the nodal loads,
+//!
+//! by Gauss-Seidel over vertex blocks: vertex `i`'s local potential `G_i(x_i)` (its inertia,
+//! its load and the energy of the triangles around it, the other vertices held) gets one
+//! Newton step with the 2x2 block
+//!
+//! `H_i = m_i / h^2 I + sum_e a_e B_e`,  `(B_e)_ik = sum_jl g_j dP_ij/dF_kl g_l`,
+//!
+//! from every energy's `P` and `dP/dF`, with `g` the shape-function gradient of the vertex's
+//! corner. **Definiteness fix:** each triangle's block `B_e` has its negative eigenvalue
+//! clamped to zero before it is summed (StVK's, under compression, and every energy's under
+//! large shear can be indefinite), so `H_i` is always positive definite and the step a descent
+//! direction. **Line search** (`line_search`, default on): the step is halved (up to 8 times)
+//! until `G_i` is finite and not above its value at the start; otherwise the vertex stays.
+//! With it every vertex update lowers `G`, so the sweeps descend monotonically; without it a
+//! step is still halved while it would invert a triangle of an energy that forbids inversion
+//! (its `psi` infinite at `det F <= 0`).
+//!
+//! **What it converges to.** As `iterations` grow, each step converges to a stationary point
+//! of `G`: the implicit Euler step, which Newton finds to its tolerance. The stepper battery's
+//! rollout (`tests/suite/battery.rs`) and `tests/suite/vbd.rs` measure the gap: one step from
+//! a stretched beam reaches implicit Euler's to round-off, the gap shrinking geometrically
+//! with the iterations (Gauss-Seidel's linear rate).
+//!
+//! **Parallel sweeps.** The free vertices are coloured so that no two of one colour share a
+//! triangle ([`VertexColouring`]); within a colour the updates are independent, so they are
+//! computed in parallel from the same positions and then written. The result equals the
+//! serial sweep in colour order, bit for bit, for any number of threads.
+//!
+//! **Initial guess** (`init`): `previous` (the positions at the start of the step),
+//! `inertia` (`x_hat + h^2 f / m`, the paper's inertia-and-acceleration guess with the
+//! external acceleration), or `adaptive` (default; the paper's Sec. 3.6): `x_hat + h^2 a~`
+//! with `a~` the last step's acceleration `(v_t - v_{t-1}) / h` projected on the external
+//! acceleration's direction and clamped between zero and its magnitude, so a body resting on
+//! a support does not start each step pushed into it; the first step uses the full external
+//! acceleration. A guess that inverts a triangle of an energy forbidding inversion is replaced
+//! by the previous positions (kinematic vertices moved), which are valid. The adaptive guess
+//! reads the previous step's velocity, kept by the stepper: it changes only where the
+//! iterations start, never what they converge to.
+//!
+//! **Chebyshev acceleration** (`chebyshev_rho`, 0 = off; Wang 2015, as the VBD paper uses it):
+//! after sweep `k` the free positions become `x_k = w_k (x~_k - x_{k-2}) + x_{k-2}` with
+//! `w_1 = 1`, `w_2 = 2 / (2 - rho^2)`, `w_k = 4 / (4 - rho^2 w_{k-1})`. It helps when `rho` is
+//! near the sweeps' true spectral radius (stiff, slowly converging steps); with `rho` above it,
+//! the extrapolation overshoots and the iterations oscillate or diverge (measured in
+//! `tests/suite/vbd.rs`). An extrapolation that would invert a triangle of an energy
+//! forbidding inversion is dropped (that sweep's plain result is kept) and the sequence
+//! restarts.
+//!
+//! Contact is not handled yet: a model with a ground or obstacles is rejected at construction
+//! (implicit Euler's restriction too).
+//!
+//! Registered as `vbd` ([`Solver`]); scene keys `dt`, `substeps`, `iterations`, `damping`,
+//! `init`, `chebyshev_rho`, `line_search`.
+
+use fem_core::energy::Energy;
+use fem_core::math::{Mat2, Real, Vec2, vec_index};
+use fem_core::mesh::VertexAdjacency;
+use rayon::prelude::*;
+
+use crate::colour::VertexColouring;
+use crate::commit::{Kinematic, StepEnd};
+use crate::error::{SolverError, check_count, check_non_negative, check_positive};
+use crate::implicit::external_load;
+use crate::kernel::{ELEMENT_CHUNK, Inversion, PackedElement, deformation_gradient, pack};
+use crate::limits;
+use crate::model::Model;
+use crate::registry::{Capabilities, Clock, Solver};
+use crate::report::StepReport;
+use crate::state::State;
+use crate::{Stepper, check_step_inputs};
+
+/// Vertices per parallel task of a colour. Fixed, so the split never depends on the thread
+/// count (the updates of one colour are independent anyway).
+const VBD_CHUNK: usize = 512;
+/// Halvings of a local step before the vertex is left where it is.
+const LOCAL_HALVINGS: usize = 8;
+
+/// Where the iterations of a step start. Serde names: `previous`, `inertia`, `adaptive`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(rename_all = "kebab-case")
+)]
+pub enum VbdInit {
+    /// The positions at the start of the step.
+    Previous,
+    /// `x + h v + h^2 f / m`: inertia and the external acceleration.
+    Inertia,
+    /// Inertia plus the last step's acceleration along the external one, clamped (the VBD
+    /// paper's adaptive initialisation). Default.
+    #[default]
+    Adaptive,
+}
+
+/// Parameters of [`VbdStepper`] (scene keys: the field names).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(default)
+)]
+pub struct VbdParams {
+    /// Time step, s (finite, > 0). Default `1e-3`.
+    pub dt: Real,
+    /// Substeps per step (>= 1); each is a full VBD step of `dt / substeps`. Default 1.
+    pub substeps: usize,
+    /// Sweeps over all free vertices per substep (>= 1). Default 10.
+    pub iterations: usize,
+    /// Velocity damping rate `c`, 1/s (`v <- v exp(-c h)` per substep). Default 0.
+    pub damping: Real,
+    /// The initial guess of each substep. Default adaptive.
+    pub init: VbdInit,
+    /// Chebyshev's spectral radius estimate `rho`, in `[0, 1)`; 0 turns the acceleration off.
+    /// Default 0.
+    pub chebyshev_rho: Real,
+    /// Backtrack each vertex step until its local potential does not increase. Default true.
+    pub line_search: bool,
+}
+
+impl Default for VbdParams {
+    fn default() -> Self {
+        VbdParams {
+            dt: 1e-3,
+            substeps: 1,
+            iterations: 10,
+            damping: 0.0,
+            init: VbdInit::default(),
+            chebyshev_rho: 0.0,
+            line_search: true,
+        }
+    }
+}
+
+impl VbdParams {
+    /// Check every field; errors name `vbd.<field>`.
+    pub fn validate(&self) -> Result<(), SolverError> {
+        self.validate_as(VbdStepper::NAME)
+    }
+
+    /// Check every field; errors name `<prefix>.<field>`.
+    pub fn validate_as(&self, prefix: &str) -> Result<(), SolverError> {
+        let field = |name: &str| format!("{prefix}.{name}");
+        check_positive(&field("dt"), self.dt)?;
+        check_count(&field("substeps"), self.substeps, limits::MAX_SUBSTEPS)?;
+        check_count(
+            &field("iterations"),
+            self.iterations,
+            limits::MAX_ITERATIONS,
+        )?;
+        check_non_negative(&field("damping"), self.damping)?;
+        if !(self.chebyshev_rho >= 0.0 && self.chebyshev_rho < 1.0) {
+            return Err(SolverError::invalid(
+                field("chebyshev_rho"),
+                self.chebyshev_rho,
+                "must be in [0, 1) (0 turns the acceleration off)",
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// What the last step did, beyond its [`StepReport`].
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct VbdStats {
+    /// Vertex updates whose step was halved at least once.
+    pub halved: usize,
+    /// Vertex updates left in place (no acceptable step, or a singular block).
+    pub rejected: usize,
+    /// Chebyshev extrapolations dropped because they inverted a triangle.
+    pub chebyshev_restarts: usize,
+    /// Whether an initial guess was replaced by the previous positions.
+    pub fallback_guess: bool,
+}
+
+/// Vertex Block Descent; see the module docs.
+#[derive(Debug)]
+pub struct VbdStepper {
+    params: VbdParams,
+    h: Real,
+    decay: Real,
+    n_triangles: usize,
+    els: Vec<PackedElement>,
+    colouring: VertexColouring,
+    forbids_inversion: bool,
+    target: Vec<Vec2>,
+    load: Vec<Vec2>,
+    x: Vec<Vec2>,
+    v_new: Vec<Vec2>,
+    /// Per colour slot: the vertex's new position, written back after the colour.
+    buf: Vec<Vec2>,
+    /// Per colour slot: the outcome of the vertex update.
+    outcome: Vec<Outcome>,
+    /// Chebyshev's iterates (allocated on the first accelerated step).
+    chebyshev: Chebyshev,
+    /// The velocities at the start of the last substep (adaptive guess), if any.
+    v_prev: Option<Vec<Vec2>>,
+    stats: VbdStats,
+}
+
+/// One vertex update: gradient norm before it (N), and how it went.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct Outcome {
+    gradient: Real,
+    halved: bool,
+    rejected: bool,
+}
+
+/// Whether `energy` forbids inversion: `psi` is infinite at `det F = -1`.
+fn forbids_inversion<E: Energy>(energy: &E) -> bool {
+    !energy.psi(&Mat2::new(1.0, 0.0, 0.0, -1.0)).is_finite()
+}
+
+/// The shape-function gradient of `corner` (see `fem_core::element::Tri3::gradients`).
+#[inline(always)]
+fn corner_gradient(el: &PackedElement, corner: u8) -> Vec2 {
+    let d = &el.dm_inv;
+    let g1 = Vec2::new(d[(0, 0)], d[(0, 1)]);
+    let g2 = Vec2::new(d[(1, 0)], d[(1, 1)]);
+    match corner {
+        0 => -(g1 + g2),
+        1 => g1,
+        _ => g2,
+    }
+}
+
+/// `F` of `el` with the vertex at `corner` moved to `p`.
+#[inline(always)]
+fn deformation_gradient_with(el: &PackedElement, x: &[Vec2], corner: u8, p: Vec2) -> Mat2 {
+    let mut v = [
+        x[el.idx[0] as usize],
+        x[el.idx[1] as usize],
+        x[el.idx[2] as usize],
+    ];
+    v[corner as usize] = p;
+    Mat2::from_columns(&[v[1] - v[0], v[2] - v[0]]) * el.dm_inv
+}
+
+/// The symmetric 2x2 matrix `[[a, b], [b, c]]` with negative eigenvalues set to zero.
+#[inline(always)]
+fn psd2(a: Real, b: Real, c: Real) -> (Real, Real, Real) {
+    let mean = 0.5 * (a + c);
+    let r = (0.25 * (a - c) * (a - c) + b * b).sqrt();
+    let (lo, hi) = (mean - r, mean + r);
+    if lo >= 0.0 {
+        (a, b, c)
+    } else if hi <= 0.0 {
+        (0.0, 0.0, 0.0)
+    } else {
+        // hi times the projector onto its eigenvector: (M - lo I) / (hi - lo).
+        let s = hi / (2.0 * r);
+        (s * (a - lo), s * b, s * (c - lo))
+    }
+}
+
+/// What a vertex update reads.
+struct Local<'a, E: Energy> {
+    energy: &'a E,
+    els: &'a [PackedElement],
+    adj: &'a VertexAdjacency,
+    masses: &'a [Real],
+    /// `1 / h^2`.
+    w: Real,
+    target: &'a [Vec2],
+    load: &'a [Vec2],
+    line_search: bool,
+    forbids_inversion: bool,
+}
+
+impl<E: Energy> Local<'_, E> {
+    /// The local potential of vertex `v` at `p` (the others at `x`), measured from its
+    /// inertia and load terms at `x[v]` so that round-off stays that of the changes.
+    fn potential(&self, v: usize, x: &[Vec2], p: Vec2) -> Real {
+        let mw = self.masses[v] * self.w;
+        let mut e = 0.5 * mw * (p - self.target[v]).norm_squared() - self.load[v].dot(&(p - x[v]));
+        for &(t, corner) in self.adj.of(v) {
+            let el = &self.els[t as usize];
+            e += el.area
+                * self
+                    .energy
+                    .psi(&deformation_gradient_with(el, x, corner, p));
+        }
+        e
+    }
+
+    /// Whether moving vertex `v` to `p` keeps every triangle around it uninverted.
+    fn keeps_orientation(&self, v: usize, x: &[Vec2], p: Vec2) -> bool {
+        self.adj.of(v).iter().all(|&(t, corner)| {
+            deformation_gradient_with(&self.els[t as usize], x, corner, p).determinant() > 0.0
+        })
+    }
+
+    /// One Newton step on vertex `v`'s local potential: the new position and the outcome.
+    #[inline]
+    fn update(&self, v: usize, x: &[Vec2]) -> (Vec2, Outcome) {
+        let xi = x[v];
+        let mw = self.masses[v] * self.w;
+        let mut g = (xi - self.target[v]) * mw - self.load[v];
+        let (mut h00, mut h01, mut h11) = (mw, 0.0, mw);
+        let mut elastic = 0.0;
+        let mut elastic_magnitude = 0.0;
+        for &(t, corner) in self.adj.of(v) {
+            let el = &self.els[t as usize];
+            let f = deformation_gradient(el, x);
+            let p = if self.line_search {
+                let (psi, p) = self.energy.psi_pk1(&f);
+                elastic += el.area * psi;
+                elastic_magnitude += el.area * psi.abs();
+                p
+            } else {
+                self.energy.pk1(&f)
+            };
+            let ga = corner_gradient(el, corner);
+            g += (p * ga) * el.area;
+            let d = self.energy.dpk1(&f);
+            let mut b = [[0.0; 2]; 2];
+            for (i, row) in b.iter_mut().enumerate() {
+                for (k, out) in row.iter_mut().enumerate() {
+                    let mut s = 0.0;
+                    for j in 0..2 {
+                        for l in 0..2 {
+                            s += ga[j] * d[(vec_index(i, j), vec_index(k, l))] * ga[l];
+                        }
+                    }
+                    *out = el.area * s;
+                }
+            }
+            let (p00, p01, p11) = psd2(b[0][0], 0.5 * (b[0][1] + b[1][0]), b[1][1]);
+            h00 += p00;
+            h01 += p01;
+            h11 += p11;
+        }
+        let gradient = g.norm();
+        let mut out = Outcome {
+            gradient,
+            halved: false,
+            rejected: false,
+        };
+        let det = h00 * h11 - h01 * h01;
+        // A NaN gradient or block fails this test too: the vertex stays, the NaN is reported.
+        if !(det > 0.0 && gradient.is_finite()) {
+            out.rejected = gradient.is_finite();
+            return (xi, out);
+        }
+        let step = Vec2::new(h11 * g.x - h01 * g.y, h00 * g.y - h01 * g.x) / -det;
+        if !self.line_search && !self.forbids_inversion {
+            return (xi + step, out);
+        }
+        // The starting value, in the same frame as `potential` (inertia and load from x[v]).
+        let inertia = 0.5 * mw * (xi - self.target[v]).norm_squared();
+        let start = inertia + elastic;
+        // Near convergence the decrease the quadratic model predicts, -g.step / 2, falls below
+        // the round-off of the potential's terms; comparing values then says nothing, and the
+        // full step is taken when it is valid (finite, orientation kept).
+        let predicted = -0.5 * g.dot(&step);
+        let comparable = predicted > 1e3 * Real::EPSILON * (inertia + elastic_magnitude);
+        let mut alpha = 1.0;
+        for k in 0..=LOCAL_HALVINGS {
+            let p = xi + step * alpha;
+            let ok = if self.line_search {
+                let e = self.potential(v, x, p);
+                e.is_finite() && (e <= start || !comparable)
+            } else {
+                self.keeps_orientation(v, x, p)
+            };
+            if ok {
+                out.halved = k > 0;
+                return (p, out);
+            }
+            alpha *= 0.5;
+        }
+        out.rejected = true;
+        (xi, out)
+    }
+}
+
+/// Smallest `det F` and inverted triangles of `els` at `x` (exact, so the same for any split).
+fn inversion(els: &[PackedElement], x: &[Vec2]) -> Inversion {
+    els.par_chunks(ELEMENT_CHUNK)
+        .map(|chunk| {
+            let mut s = Inversion::EMPTY;
+            for el in chunk {
+                s.add(deformation_gradient(el, x).determinant());
+            }
+            s
+        })
+        .reduce(|| Inversion::EMPTY, Inversion::merge)
+}
+
+impl VbdStepper {
+    /// A stepper for `model`: validates the parameters, rejects contact geometry, packs the
+    /// elements and colours the free vertices.
+    pub fn new<E: Energy>(model: &Model<E>, params: VbdParams) -> Result<Self, SolverError> {
+        params.validate()?;
+        if model.has_contact() {
+            return Err(SolverError::invalid(
+                "vbd.contact",
+                "ground or obstacles",
+                "contact is handled by the explicit, PBD and XPBD steppers only",
+            ));
+        }
+        let mesh = model.mesh();
+        let n = mesh.n_vertices();
+        let mut free = vec![true; n];
+        for v in model.kinematics().vertices() {
+            free[v] = false;
+        }
+        let colouring = VertexColouring::greedy(mesh, &free);
+        let slots = colouring.order.len();
+        let h = params.dt / params.substeps as Real;
+        Ok(VbdStepper {
+            h,
+            decay: (-params.damping * h).exp(),
+            params,
+            n_triangles: mesh.n_triangles(),
+            els: pack(mesh),
+            colouring,
+            forbids_inversion: forbids_inversion(model.energy()),
+            target: vec![Vec2::zeros(); n],
+            load: vec![Vec2::zeros(); n],
+            x: vec![Vec2::zeros(); n],
+            v_new: vec![Vec2::zeros(); n],
+            buf: vec![Vec2::zeros(); slots],
+            outcome: vec![Outcome::default(); slots],
+            chebyshev: Chebyshev::default(),
+            v_prev: None,
+            stats: VbdStats::default(),
+        })
+    }
+
+    /// The parameters.
+    pub fn params(&self) -> &VbdParams {
+        &self.params
+    }
+
+    /// Number of vertex colours (sequential phases of a sweep).
+    pub fn n_colours(&self) -> usize {
+        self.colouring.n_colours()
+    }
+
+    /// What the last step did.
+    pub fn last_stats(&self) -> VbdStats {
+        self.stats
+    }
+
+    /// Forget the previous step's velocity (the adaptive guess then starts afresh), e.g.
+    /// after the state was replaced.
+    pub fn reset(&mut self) {
+        self.v_prev = None;
+    }
+
+    /// The initial guess of a substep into `self.x` (free vertices; kinematic ones are placed
+    /// by the caller).
+    fn initial_guess<E: Energy>(&mut self, model: &Model<E>, state: &State) {
+        let h = self.h;
+        let masses = model.masses();
+        match self.params.init {
+            VbdInit::Previous => self.x.copy_from_slice(&state.x),
+            VbdInit::Inertia => {
+                for (i, x) in self.x.iter_mut().enumerate() {
+                    *x = self.target[i] + self.load[i] * (h * h / masses[i]);
+                }
+            }
+            VbdInit::Adaptive => {
+                for (i, x) in self.x.iter_mut().enumerate() {
+                    let a_ext = self.load[i] / masses[i];
+                    let norm = a_ext.norm();
+                    let along = if norm > 0.0 {
+                        let dir = a_ext / norm;
+                        let along = match &self.v_prev {
+                            Some(vp) => ((state.v[i] - vp[i]) / h).dot(&dir).clamp(0.0, norm),
+                            None => norm,
+                        };
+                        dir * along
+                    } else {
+                        Vec2::zeros()
+                    };
+                    *x = self.target[i] + along * (h * h);
+                }
+            }
+        }
+    }
+}
+
+/// One sweep over the colours of `c`, moving `x`; returns the largest gradient norm seen (NaN
+/// if any was NaN).
+fn sweep<E: Energy>(
+    local: &Local<'_, E>,
+    c: &VertexColouring,
+    x: &mut [Vec2],
+    buf: &mut [Vec2],
+    outcome: &mut [Outcome],
+    stats: &mut VbdStats,
+) -> Real {
+    let mut largest: Real = 0.0;
+    for k in 0..c.n_colours() {
+        let (a, b) = (c.offsets[k], c.offsets[k + 1]);
+        let order = &c.order[a..b];
+        let xr = &*x;
+        buf[a..b]
+            .par_chunks_mut(VBD_CHUNK)
+            .zip(outcome[a..b].par_chunks_mut(VBD_CHUNK))
+            .zip(order.par_chunks(VBD_CHUNK))
+            .for_each(|((buf, outcome), order)| {
+                for ((p, o), &v) in buf.iter_mut().zip(outcome.iter_mut()).zip(order) {
+                    (*p, *o) = local.update(v as usize, xr);
+                }
+            });
+        for ((&v, p), o) in order.iter().zip(&buf[a..b]).zip(&outcome[a..b]) {
+            x[v as usize] = *p;
+            if o.gradient.is_nan() || largest.is_nan() {
+                largest = Real::NAN;
+            } else {
+                largest = largest.max(o.gradient);
+            }
+            stats.halved += usize::from(o.halved);
+            stats.rejected += usize::from(o.rejected);
+        }
+    }
+    largest
+}
+
+/// Chebyshev's iterates: the positions after sweeps `k - 2` and `k - 1`, the plain result of
+/// sweep `k`, and the sequence's state.
+#[derive(Debug, Default)]
+struct Chebyshev {
+    prev: Vec<Vec2>,
+    last: Vec<Vec2>,
+    plain: Vec<Vec2>,
+    /// Sweeps in the current sequence.
+    k: usize,
+    omega: Real,
+}
+
+impl Chebyshev {
+    /// Start a sequence at `x`.
+    fn start(&mut self, x: &[Vec2]) {
+        if self.prev.len() != x.len() {
+            self.prev = vec![Vec2::zeros(); x.len()];
+            self.last = vec![Vec2::zeros(); x.len()];
+            self.plain = vec![Vec2::zeros(); x.len()];
+        }
+        self.last.copy_from_slice(x);
+        self.k = 0;
+        self.omega = 1.0;
+    }
+
+    /// Extrapolate the free vertices (`free`) of `x`, just swept; an extrapolation that
+    /// inverts a triangle (when `forbids_inversion`) is dropped and the sequence restarts.
+    fn apply(
+        &mut self,
+        rho: Real,
+        x: &mut [Vec2],
+        free: &[u32],
+        els: &[PackedElement],
+        forbids_inversion: bool,
+        stats: &mut VbdStats,
+    ) {
+        self.k += 1;
+        self.omega = match self.k {
+            1 => 1.0,
+            2 => 2.0 / (2.0 - rho * rho),
+            _ => 4.0 / (4.0 - rho * rho * self.omega),
+        };
+        if self.k > 1 {
+            self.plain.copy_from_slice(x);
+            for &v in free {
+                let v = v as usize;
+                x[v] = (x[v] - self.prev[v]) * self.omega + self.prev[v];
+            }
+            if forbids_inversion && inversion(els, x).inverted > 0 {
+                x.copy_from_slice(&self.plain);
+                stats.chebyshev_restarts += 1;
+                self.start(x);
+                return;
+            }
+        }
+        // x_{k-2} <- x_{k-1}; x_{k-1} <- x_k.
+        std::mem::swap(&mut self.prev, &mut self.last);
+        self.last.copy_from_slice(x);
+    }
+}
+
+impl Stepper for VbdStepper {
+    fn dt(&self) -> Real {
+        self.params.dt
+    }
+
+    fn step<E: Energy>(
+        &mut self,
+        model: &Model<E>,
+        state: &mut State,
+    ) -> Result<StepReport, SolverError> {
+        check_step_inputs(model, self.n_triangles, state)?;
+        let h = self.h;
+        let n = model.mesh().n_vertices();
+        let rho = self.params.chebyshev_rho;
+        let mut stats = VbdStats::default();
+        let mut residual = 0.0;
+        let mut inv = Inversion::EMPTY;
+        external_load(model, &mut self.load);
+        for sub in 0..self.params.substeps {
+            let t = state.t;
+            for ((xh, x), v) in self.target.iter_mut().zip(&state.x).zip(&state.v) {
+                *xh = x + h * v;
+            }
+            self.initial_guess(model, state);
+            let kinematics = model.kinematics();
+            kinematics.apply(t, h, &state.x, &mut self.x, &mut self.v_new);
+            if self.forbids_inversion && inversion(&self.els, &self.x).inverted > 0 {
+                self.x.copy_from_slice(&state.x);
+                kinematics.apply(t, h, &state.x, &mut self.x, &mut self.v_new);
+                stats.fallback_guess = true;
+            }
+            let local = Local {
+                energy: model.energy(),
+                els: &self.els,
+                adj: model.mesh().adjacency(),
+                masses: model.masses(),
+                w: 1.0 / (h * h),
+                target: &self.target,
+                load: &self.load,
+                line_search: self.params.line_search,
+                forbids_inversion: self.forbids_inversion,
+            };
+            if rho > 0.0 {
+                self.chebyshev.start(&self.x);
+            }
+            for _ in 0..self.params.iterations {
+                residual = sweep(
+                    &local,
+                    &self.colouring,
+                    &mut self.x,
+                    &mut self.buf,
+                    &mut self.outcome,
+                    &mut stats,
+                );
+                if rho > 0.0 {
+                    self.chebyshev.apply(
+                        rho,
+                        &mut self.x,
+                        &self.colouring.order,
+                        &self.els,
+                        self.forbids_inversion,
+                        &mut stats,
+                    );
+                }
+            }
+            inv = inversion(&self.els, &self.x);
+            let prev_v = self.v_prev.get_or_insert_with(|| vec![Vec2::zeros(); n]);
+            prev_v.copy_from_slice(&state.v);
+            for ((v, xn), x) in self.v_new.iter_mut().zip(&self.x).zip(&state.x) {
+                *v = (xn - x) / h * self.decay;
+            }
+            StepEnd {
+                kinematics: Kinematic::Schedule { t, dt: h },
+                x: &mut self.x,
+                v: &mut self.v_new,
+                bodies: None,
+                known_finite: false,
+                inverted: inv.inverted,
+                min_det_f: inv.min_det_f,
+                t_end: t + h,
+                count_step: sub + 1 == self.params.substeps,
+            }
+            .commit(model, state, || Ok(()))?;
+        }
+        self.stats = stats;
+        Ok(StepReport {
+            min_det_f: inv.min_det_f,
+            inverted: inv.inverted,
+            iterations: self.params.iterations * self.params.substeps,
+            residual,
+            contacts: 0,
+        })
+    }
+}
+
+impl Solver for VbdStepper {
+    type Params = VbdParams;
+    const NAME: &'static str = "vbd";
+    const CAPABILITIES: Capabilities = Capabilities {
+        title: "VBD",
+        summary: "Vertex Block Descent: Gauss-Seidel over vertices on implicit Euler's incremental potential, a 2x2 Newton step each, vertex colouring",
+        paper: false,
+        contact: false,
+        implicit: true,
+        iterations: true,
+        substeps: true,
+        factorisation: false,
+        deterministic_across_threads: true,
+        clock: Clock::Time,
+        converges_to: "each step to implicit Euler's as iterations grow (monotone descent of the same incremental potential, Gauss-Seidel's linear rate)",
+    };
+
+    fn validate_params(p: &VbdParams, prefix: &str) -> Result<(), SolverError> {
+        p.validate_as(prefix)
+    }
+
+    fn build<E: Energy>(model: &Model<E>, p: &VbdParams) -> Result<Self, SolverError> {
+        VbdStepper::new(model, *p)
+    }
+
+    fn dt_mut(p: &mut VbdParams) -> Option<&mut Real> {
+        Some(&mut p.dt)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn psd2_keeps_positive_matrices_and_clamps_negative_eigenvalues() {
+        assert_eq!(psd2(2.0, 0.5, 1.0), (2.0, 0.5, 1.0));
+        assert_eq!(psd2(-1.0, 0.0, -2.0), (0.0, 0.0, 0.0));
+        // diag(3, -1) rotated by 30 degrees: the projection keeps 3 u u^T.
+        let (c, s) = (30f64.to_radians().cos(), 30f64.to_radians().sin());
+        let (a, b, d) = (3.0 * c * c - s * s, 4.0 * c * s, 3.0 * s * s - c * c);
+        let (p00, p01, p11) = psd2(a, b, d);
+        for (got, want) in [(p00, 3.0 * c * c), (p01, 3.0 * c * s), (p11, 3.0 * s * s)] {
+            assert!((got - want).abs() < 1e-14, "{got} vs {want}");
+        }
+    }
+}
