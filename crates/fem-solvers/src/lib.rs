@@ -5,8 +5,10 @@
 //! XPBD (Algorithm II, Eq. 7), with pinned and prescribed vertices, gravity, nodal loads and
 //! boundary tractions, a ground and rigid obstacles; and beyond the paper, implicit Euler
 //! ([`ImplicitStepper`]) and quasi-static equilibrium ([`StaticStepper`]), both by Newton with a
-//! sparse Cholesky factorisation (faer), and Vertex Block Descent ([`VbdStepper`]: implicit
-//! Euler's potential minimised vertex by vertex, for real-time frame rates).
+//! sparse Cholesky factorisation (faer), and for real-time frame rates the same implicit Euler
+//! step by cheaper iterations: Vertex Block Descent ([`VbdStepper`]), Projective Dynamics
+//! ([`PdStepper`], co-rotational) and L-BFGS with the Projective Dynamics matrix
+//! ([`QuasiNewtonStepper`]).
 //!
 //! The pieces, kept apart:
 //! - a [`Model`] (mesh, energy, lumped masses, boundary conditions, loads, obstacles): fixed
@@ -16,8 +18,7 @@
 //!   the static solver a load increment) and return a [`StepReport`] (min det F, inverted
 //!   elements, iterations, constraint or Newton residual, contacts): [`ExplicitStepper`],
 //!   [`PbdStepper`], [`XpbdStepper`], [`ImplicitStepper`], [`StaticStepper`], [`VbdStepper`],
-//!   all behind the
-//!   [`Stepper`] trait.
+//!   [`PdStepper`], [`QuasiNewtonStepper`], all behind the [`Stepper`] trait.
 //!
 //! **The solver registry** ([`registry`]): one list of the solvers, from which [`SolverKind`]
 //! (the names, [`SolverKind::ALL`], [`Capabilities`]), [`SolverParams`] (any solver's parameters,
@@ -109,7 +110,10 @@ mod kernel;
 pub mod limits;
 pub mod model;
 pub mod newton;
+mod pd_system;
 pub mod position_based;
+pub mod projective;
+pub mod quasi_newton;
 pub mod registry;
 #[cfg(all(test, feature = "serde"))]
 mod registry_extension;
@@ -131,6 +135,8 @@ pub use implicit::{ImplicitParams, ImplicitStepper};
 pub use model::{Model, TimeStepCheck};
 pub use newton::{NewtonParams, NewtonReport};
 pub use position_based::{Ordering, PbdParams, PbdStepper, XpbdForm, XpbdParams, XpbdStepper};
+pub use projective::{PdParams, PdStepper};
+pub use quasi_newton::{QuasiNewtonParams, QuasiNewtonReport, QuasiNewtonStepper};
 pub use registry::{
     AnyStepper, Capabilities, Clock, ParamsSerde, Solver, SolverKind, SolverParams,
     capability_table,

@@ -308,6 +308,8 @@ registry! {
     Implicit => crate::implicit::ImplicitStepper,
     Static => crate::statics::StaticStepper,
     Vbd => crate::vbd::VbdStepper,
+    Pd => crate::projective::PdStepper,
+    QuasiNewton => crate::quasi_newton::QuasiNewtonStepper,
 }
 
 impl Default for SolverKind {
@@ -395,7 +397,7 @@ mod tests {
         assert_eq!(SolverKind::default(), SolverKind::Explicit);
         assert_eq!(
             "rk4".parse::<SolverKind>().unwrap_err().to_string(),
-            "unknown solver `rk4` (expected one of: explicit, pbd, xpbd, implicit, static, vbd)"
+            "unknown solver `rk4` (expected one of: explicit, pbd, xpbd, implicit, static, vbd, pd, quasi-newton)"
         );
     }
 

@@ -117,6 +117,8 @@ mod extended {
         Implicit => crate::implicit::ImplicitStepper,
         Static => crate::statics::StaticStepper,
         Vbd => crate::vbd::VbdStepper,
+    Pd => crate::projective::PdStepper,
+    QuasiNewton => crate::quasi_newton::QuasiNewtonStepper,
         TwoHalves => crate::registry_extension::TwoHalves,
     }
 }

@@ -157,14 +157,7 @@ impl VbdParams {
             limits::MAX_ITERATIONS,
         )?;
         check_non_negative(&field("damping"), self.damping)?;
-        if !(self.chebyshev_rho >= 0.0 && self.chebyshev_rho < 1.0) {
-            return Err(SolverError::invalid(
-                field("chebyshev_rho"),
-                self.chebyshev_rho,
-                "must be in [0, 1) (0 turns the acceleration off)",
-            ));
-        }
-        Ok(())
+        crate::projective::check_rho(&field("chebyshev_rho"), self.chebyshev_rho)
     }
 }
 
@@ -215,7 +208,7 @@ struct Outcome {
 }
 
 /// Whether `energy` forbids inversion: `psi` is infinite at `det F = -1`.
-fn forbids_inversion<E: Energy>(energy: &E) -> bool {
+pub(crate) fn forbids_inversion<E: Energy>(energy: &E) -> bool {
     !energy.psi(&Mat2::new(1.0, 0.0, 0.0, -1.0)).is_finite()
 }
 
@@ -383,7 +376,7 @@ impl<E: Energy> Local<'_, E> {
 }
 
 /// Smallest `det F` and inverted triangles of `els` at `x` (exact, so the same for any split).
-fn inversion(els: &[PackedElement], x: &[Vec2]) -> Inversion {
+pub(crate) fn inversion(els: &[PackedElement], x: &[Vec2]) -> Inversion {
     els.par_chunks(ELEMENT_CHUNK)
         .map(|chunk| {
             let mut s = Inversion::EMPTY;
@@ -531,7 +524,7 @@ fn sweep<E: Energy>(
 /// Chebyshev's iterates: the positions after sweeps `k - 2` and `k - 1`, the plain result of
 /// sweep `k`, and the sequence's state.
 #[derive(Debug, Default)]
-struct Chebyshev {
+pub(crate) struct Chebyshev {
     prev: Vec<Vec2>,
     last: Vec<Vec2>,
     plain: Vec<Vec2>,
@@ -542,7 +535,7 @@ struct Chebyshev {
 
 impl Chebyshev {
     /// Start a sequence at `x`.
-    fn start(&mut self, x: &[Vec2]) {
+    pub(crate) fn start(&mut self, x: &[Vec2]) {
         if self.prev.len() != x.len() {
             self.prev = vec![Vec2::zeros(); x.len()];
             self.last = vec![Vec2::zeros(); x.len()];
@@ -553,17 +546,17 @@ impl Chebyshev {
         self.omega = 1.0;
     }
 
-    /// Extrapolate the free vertices (`free`) of `x`, just swept; an extrapolation that
-    /// inverts a triangle (when `forbids_inversion`) is dropped and the sequence restarts.
-    fn apply(
+    /// Extrapolate the free vertices (`free`) of `x`, just iterated; an extrapolation that
+    /// inverts a triangle (when `forbids_inversion`) is dropped and the sequence restarts
+    /// (returns true).
+    pub(crate) fn apply(
         &mut self,
         rho: Real,
         x: &mut [Vec2],
         free: &[u32],
         els: &[PackedElement],
         forbids_inversion: bool,
-        stats: &mut VbdStats,
-    ) {
+    ) -> bool {
         self.k += 1;
         self.omega = match self.k {
             1 => 1.0,
@@ -578,14 +571,14 @@ impl Chebyshev {
             }
             if forbids_inversion && inversion(els, x).inverted > 0 {
                 x.copy_from_slice(&self.plain);
-                stats.chebyshev_restarts += 1;
                 self.start(x);
-                return;
+                return true;
             }
         }
         // x_{k-2} <- x_{k-1}; x_{k-1} <- x_k.
         std::mem::swap(&mut self.prev, &mut self.last);
         self.last.copy_from_slice(x);
+        false
     }
 }
 
@@ -644,14 +637,14 @@ impl Stepper for VbdStepper {
                     &mut stats,
                 );
                 if rho > 0.0 {
-                    self.chebyshev.apply(
+                    let restarted = self.chebyshev.apply(
                         rho,
                         &mut self.x,
                         &self.colouring.order,
                         &self.els,
                         self.forbids_inversion,
-                        &mut stats,
                     );
+                    stats.chebyshev_restarts += usize::from(restarted);
                 }
             }
             inv = inversion(&self.els, &self.x);

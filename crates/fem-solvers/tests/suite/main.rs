@@ -12,6 +12,8 @@ mod determinism;
 mod explicit;
 mod implicit;
 mod position_based;
+mod projective;
+mod quasi_newton;
 mod registry;
 mod statics;
 mod vbd;

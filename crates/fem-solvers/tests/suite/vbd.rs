@@ -14,7 +14,7 @@ use crate::common::{cantilever, case_a_lame};
 
 /// The case A cantilever (10 x 2 cells) under `kind`, swinging: a state after 20 implicit
 /// steps of 10 ms from rest, so each step starts with velocity and strain.
-fn swinging(kind: EnergyKind) -> (Model<AnyEnergy>, State) {
+pub fn swinging(kind: EnergyKind) -> (Model<AnyEnergy>, State) {
     let model = cantilever(kind.build(case_a_lame()).unwrap(), 10, 2);
     let mut state = State::at_rest(&model);
     let mut implicit = ImplicitStepper::new(&model, ImplicitParams::default()).unwrap();
@@ -25,7 +25,7 @@ fn swinging(kind: EnergyKind) -> (Model<AnyEnergy>, State) {
 }
 
 /// One implicit Euler step of `dt` from `state`, Newton to 1e-13.
-fn implicit_step(model: &Model<AnyEnergy>, state: &State, dt: Real) -> State {
+pub fn implicit_step(model: &Model<AnyEnergy>, state: &State, dt: Real) -> State {
     let params = ImplicitParams {
         dt,
         newton: NewtonParams {
@@ -55,7 +55,7 @@ fn vbd_step(model: &Model<AnyEnergy>, state: &State, dt: Real, params: VbdParams
 
 /// Implicit Euler's incremental potential of the step of `dt` from `start`, at `x` (gravity
 /// only, as in these scenes), J per unit thickness.
-fn potential(model: &Model<AnyEnergy>, start: &State, dt: Real, x: &[Vec2]) -> Real {
+pub fn potential(model: &Model<AnyEnergy>, start: &State, dt: Real, x: &[Vec2]) -> Real {
     use fem_core::energy::Energy;
     let mesh = model.mesh();
     let mut e = 0.0;
@@ -73,7 +73,7 @@ fn potential(model: &Model<AnyEnergy>, start: &State, dt: Real, x: &[Vec2]) -> R
 
 /// Largest vertex distance between `a` and `b` over the largest distance `reference` moved
 /// from `start`.
-fn gap(a: &State, b: &State, start: &State, reference: &State) -> Real {
+pub fn gap(a: &State, b: &State, start: &State, reference: &State) -> Real {
     let d =
         a.x.iter()
             .zip(&b.x)

@@ -1,0 +1,388 @@
+//! Projective Dynamics (Bouaziz, Martin, Liu, Kavan & Pauly, "Projective Dynamics: Fusing
+//! Constraint Projections for Fast Simulation", ACM TOG 33(4), 2014) for the co-rotational
+//! energy, with optional Chebyshev acceleration (Wang, "A Chebyshev Semi-Iterative Approach for
+//! Accelerating Projective and Position-based Dynamics", ACM TOG 34(6), 2015).
+//!
+//! **The energy as projective terms.** The co-rotational energy
+//! `psi = mu |F - R|^2 + lambda/2 (tr(R^T F) - 2)^2` ([`fem_core::energy::Corotational`]) is
+//! exactly a sum of two squared distances to constraint sets:
+//! - `mu |F - R|^2`: the distance to the rotations, projection `p1 = R` (the polar rotation).
+//!   At `nu = 0` (`lambda = 0`) this is the whole energy: ARAP.
+//! - **the area term**, `lambda/2 (tr S - 2)^2` with `S = R^T F`, equals `lambda |F - p2|^2` with
+//!   `p2 = F + R (2 - tr S) / 2`, the nearest matrix whose stretch has trace 2 (the term's zero
+//!   set): `|F - p2|^2 = 2 ((2 - tr S) / 2)^2`. Its gradient `2 lambda (F - p2) =
+//!   lambda (tr S - 2) R` is the term's `P`, so for `nu > 0` nothing is approximated: the
+//!   fixed point of the iterations is the implicit Euler step of the co-rotational energy.
+//!
+//! Each step of length `h` minimises implicit Euler's incremental potential
+//! `sum m/(2 h^2) |x - x_hat|^2 - f . x + sum_e a_e psi(F_e)` by local-global iterations from
+//! `x_hat + h^2 f / m`: the **local step** computes `p1, p2` per triangle (in parallel); the
+//! **global step** solves `(M / h^2 + L) x = M / h^2 x_hat + f + sum_e G_e^T (w1 p1 + w2 p2)`
+//! with `w1 = 2 a mu`, `w2 = 2 a lambda`, `L = sum_e (w1 + w2) G_e^T G_e` ([`PdSystem`]): one
+//! matrix for the whole run, factorised once when the stepper is built. Each iteration lowers
+//! the potential; it converges linearly to the implicit Euler step (`tests/suite/projective.rs`
+//! measures the gap against Newton's step).
+//!
+//! Chebyshev (`chebyshev_rho`, 0 = off) extrapolates the free positions after each iteration
+//! as in [`crate::vbd`]; it does not change the fixed point, and a `rho` above the iterations'
+//! spectral radius makes them diverge.
+//!
+//! Other energies are not sums of projective terms and are refused at construction (the
+//! quasi-Newton solver runs them with this matrix as its initial Hessian). Contact is not
+//! handled yet (refused, as for implicit Euler). The step's residual is the largest position
+//! change of its last iteration, m.
+//!
+//! Registered as `pd` ([`Solver`]); scene keys `dt`, `iterations`, `damping`,
+//! `chebyshev_rho`.
+
+use fem_core::energy::Energy;
+use fem_core::math::{Mat2, Real, Vec2};
+use fem_core::polar::Polar2;
+use rayon::prelude::*;
+
+use crate::commit::{Kinematic, StepEnd};
+use crate::error::{SolverError, check_count, check_non_negative, check_positive};
+use crate::implicit::external_load;
+use crate::kernel::{ELEMENT_CHUNK, PackedElement, VERTEX_CHUNK, deformation_gradient, pack};
+use crate::limits;
+use crate::model::Model;
+use crate::pd_system::{PdSystem, rest_lame};
+use crate::registry::{Capabilities, Clock, Solver};
+use crate::report::StepReport;
+use crate::state::State;
+use crate::vbd::{Chebyshev, inversion};
+use crate::{Stepper, check_step_inputs};
+
+/// Parameters of [`PdStepper`] (scene keys: the field names).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(default)
+)]
+pub struct PdParams {
+    /// Time step, s (finite, > 0). Default `1e-3`.
+    pub dt: Real,
+    /// Local-global iterations per step (>= 1). Default 10.
+    pub iterations: usize,
+    /// Velocity damping rate `c`, 1/s (`v <- v exp(-c dt)` each step). Default 0.
+    pub damping: Real,
+    /// Chebyshev's spectral radius estimate `rho`, in `[0, 1)`; 0 turns the acceleration off.
+    /// Default 0.
+    pub chebyshev_rho: Real,
+}
+
+impl Default for PdParams {
+    fn default() -> Self {
+        PdParams {
+            dt: 1e-3,
+            iterations: 10,
+            damping: 0.0,
+            chebyshev_rho: 0.0,
+        }
+    }
+}
+
+impl PdParams {
+    /// Check every field; errors name `pd.<field>`.
+    pub fn validate(&self) -> Result<(), SolverError> {
+        self.validate_as(PdStepper::NAME)
+    }
+
+    /// Check every field; errors name `<prefix>.<field>`.
+    pub fn validate_as(&self, prefix: &str) -> Result<(), SolverError> {
+        let field = |name: &str| format!("{prefix}.{name}");
+        check_positive(&field("dt"), self.dt)?;
+        check_count(
+            &field("iterations"),
+            self.iterations,
+            limits::MAX_ITERATIONS,
+        )?;
+        check_non_negative(&field("damping"), self.damping)?;
+        check_rho(&field("chebyshev_rho"), self.chebyshev_rho)
+    }
+}
+
+/// `rho` in `[0, 1)`.
+pub(crate) fn check_rho(field: &str, rho: Real) -> Result<(), SolverError> {
+    if (0.0..1.0).contains(&rho) {
+        Ok(())
+    } else {
+        Err(SolverError::invalid(
+            field,
+            rho,
+            "must be in [0, 1) (0 turns the acceleration off)",
+        ))
+    }
+}
+
+/// Projective Dynamics for the co-rotational energy; see the module docs.
+#[derive(Debug)]
+pub struct PdStepper {
+    params: PdParams,
+    decay: Real,
+    n_triangles: usize,
+    els: Vec<PackedElement>,
+    system: PdSystem,
+    /// Per triangle: `2 a mu` and `2 a lambda`.
+    w_mu: Vec<Real>,
+    w_lambda: Vec<Real>,
+    /// Per triangle: `w1 p1 + w2 p2` of the last local step.
+    projections: Vec<Mat2>,
+    /// The free vertices, increasing.
+    free: Vec<u32>,
+    target: Vec<Vec2>,
+    load: Vec<Vec2>,
+    x: Vec<Vec2>,
+    v_new: Vec<Vec2>,
+    /// Per vertex: the global step's right-hand side.
+    rhs_v: Vec<Vec2>,
+    /// The right-hand sides over the free vertices, column-major (x, then y).
+    rhs: Vec<Real>,
+    chebyshev: Chebyshev,
+}
+
+impl PdStepper {
+    /// A stepper for `model`: validates the parameters, refuses energies other than the
+    /// co-rotational one and contact geometry, and assembles and factorises the global matrix.
+    pub fn new<E: Energy>(model: &Model<E>, params: PdParams) -> Result<Self, SolverError> {
+        params.validate()?;
+        let name = model.energy().name();
+        if name != "corotational" {
+            return Err(SolverError::invalid(
+                "pd.energy",
+                name,
+                "Projective Dynamics runs the corotational energy only (the sum of two projective terms); use quasi-newton for the others",
+            ));
+        }
+        if model.has_contact() {
+            return Err(SolverError::invalid(
+                "pd.contact",
+                "ground or obstacles",
+                "contact is handled by the explicit, PBD and XPBD steppers only",
+            ));
+        }
+        let mesh = model.mesh();
+        let n = mesh.n_vertices();
+        let (mu, lambda) = rest_lame(model.energy());
+        let w_mu: Vec<Real> = mesh.elements().iter().map(|e| 2.0 * e.area * mu).collect();
+        let w_lambda: Vec<Real> = mesh
+            .elements()
+            .iter()
+            .map(|e| 2.0 * e.area * lambda)
+            .collect();
+        let weights: Vec<Real> = w_mu.iter().zip(&w_lambda).map(|(a, b)| a + b).collect();
+        let mut kinematic = vec![false; n];
+        for v in model.kinematics().vertices() {
+            kinematic[v] = true;
+        }
+        let h = params.dt;
+        let system = PdSystem::new(
+            mesh,
+            model.masses(),
+            &weights,
+            1.0 / (h * h),
+            &kinematic,
+            "pd",
+        )?;
+        let free: Vec<u32> = (0..n as u32).filter(|&v| !kinematic[v as usize]).collect();
+        Ok(PdStepper {
+            decay: (-params.damping * h).exp(),
+            params,
+            n_triangles: mesh.n_triangles(),
+            els: pack(mesh),
+            rhs: vec![0.0; 2 * system.n_free()],
+            system,
+            w_mu,
+            w_lambda,
+            projections: vec![Mat2::zeros(); mesh.n_triangles()],
+            free,
+            target: vec![Vec2::zeros(); n],
+            load: vec![Vec2::zeros(); n],
+            x: vec![Vec2::zeros(); n],
+            v_new: vec![Vec2::zeros(); n],
+            rhs_v: vec![Vec2::zeros(); n],
+            chebyshev: Chebyshev::default(),
+        })
+    }
+
+    /// The parameters.
+    pub fn params(&self) -> &PdParams {
+        &self.params
+    }
+
+    /// Numeric factorisations of the global matrix since the stepper was built: one, whatever
+    /// the number of steps.
+    pub fn factorisations(&self) -> usize {
+        self.system.factorisations()
+    }
+
+    /// One local-global iteration from `self.x`; returns the largest position change, m.
+    fn iterate<E: Energy>(&mut self, model: &Model<E>, w: Real) -> Real {
+        // Local: the projections, in parallel over fixed chunks (independent per triangle).
+        let x = &self.x;
+        self.projections
+            .par_chunks_mut(ELEMENT_CHUNK)
+            .zip(self.els.par_chunks(ELEMENT_CHUNK))
+            .zip(self.w_mu.par_chunks(ELEMENT_CHUNK))
+            .zip(self.w_lambda.par_chunks(ELEMENT_CHUNK))
+            .for_each(|(((out, els), w1), w2)| {
+                for (((p, el), w1), w2) in out.iter_mut().zip(els).zip(w1).zip(w2) {
+                    let f = deformation_gradient(el, x);
+                    let r = Polar2::new(&f).rotation();
+                    let trace =
+                        r[(0, 0)] * (f[(0, 0)] + f[(1, 1)]) + r[(1, 0)] * (f[(1, 0)] - f[(0, 1)]);
+                    let p2 = f + r * (0.5 * (2.0 - trace));
+                    *p = r * *w1 + p2 * *w2;
+                }
+            });
+        // Global right-hand side per vertex, summed in adjacency (triangle) order.
+        let adj = model.mesh().adjacency();
+        let (masses, target, load, projections, els) = (
+            model.masses(),
+            &self.target,
+            &self.load,
+            &self.projections,
+            &self.els,
+        );
+        self.rhs_v
+            .par_chunks_mut(VERTEX_CHUNK)
+            .enumerate()
+            .for_each(|(c, out)| {
+                for (k, r) in out.iter_mut().enumerate() {
+                    let v = c * VERTEX_CHUNK + k;
+                    let mut s = target[v] * (masses[v] * w) + load[v];
+                    for &(t, corner) in adj.of(v) {
+                        let el = &els[t as usize];
+                        let d = &el.dm_inv;
+                        let g1 = Vec2::new(d[(0, 0)], d[(0, 1)]);
+                        let g2 = Vec2::new(d[(1, 0)], d[(1, 1)]);
+                        let g = match corner {
+                            0 => -(g1 + g2),
+                            1 => g1,
+                            _ => g2,
+                        };
+                        s += projections[t as usize] * g;
+                    }
+                    *r = s;
+                }
+            });
+        let n = self.system.n_free();
+        for (k, &v) in self.free.iter().enumerate() {
+            let r = self.rhs_v[v as usize];
+            self.rhs[k] = r.x;
+            self.rhs[n + k] = r.y;
+        }
+        self.system.move_kinematic_to_rhs(&self.x, &mut self.rhs);
+        self.system.solve(&mut self.rhs);
+        let mut change: Real = 0.0;
+        for (k, &v) in self.free.iter().enumerate() {
+            let p = Vec2::new(self.rhs[k], self.rhs[n + k]);
+            let d = (p - self.x[v as usize]).norm();
+            change = if d.is_nan() || change.is_nan() {
+                Real::NAN
+            } else {
+                change.max(d)
+            };
+            self.x[v as usize] = p;
+        }
+        change
+    }
+}
+
+impl Stepper for PdStepper {
+    fn dt(&self) -> Real {
+        self.params.dt
+    }
+
+    fn step<E: Energy>(
+        &mut self,
+        model: &Model<E>,
+        state: &mut State,
+    ) -> Result<StepReport, SolverError> {
+        check_step_inputs(model, self.n_triangles, state)?;
+        let (h, t) = (self.params.dt, state.t);
+        let w = 1.0 / (h * h);
+        external_load(model, &mut self.load);
+        let masses = model.masses();
+        for (i, ((xh, x), v)) in self
+            .target
+            .iter_mut()
+            .zip(&state.x)
+            .zip(&state.v)
+            .enumerate()
+        {
+            *xh = x + h * v;
+            self.x[i] = *xh + self.load[i] * (h * h / masses[i]);
+        }
+        model
+            .kinematics()
+            .apply(t, h, &state.x, &mut self.x, &mut self.v_new);
+        let rho = self.params.chebyshev_rho;
+        if rho > 0.0 {
+            self.chebyshev.start(&self.x);
+        }
+        let mut residual = 0.0;
+        for _ in 0..self.params.iterations {
+            residual = self.iterate(model, w);
+            if rho > 0.0 {
+                // The co-rotational energy is finite under inversion: no restart needed.
+                self.chebyshev
+                    .apply(rho, &mut self.x, &self.free, &self.els, false);
+            }
+        }
+        let inv = inversion(&self.els, &self.x);
+        for ((v, xn), x) in self.v_new.iter_mut().zip(&self.x).zip(&state.x) {
+            *v = (xn - x) / h * self.decay;
+        }
+        StepEnd {
+            kinematics: Kinematic::Schedule { t, dt: h },
+            x: &mut self.x,
+            v: &mut self.v_new,
+            bodies: None,
+            known_finite: false,
+            inverted: inv.inverted,
+            min_det_f: inv.min_det_f,
+            t_end: t + h,
+            count_step: true,
+        }
+        .commit(model, state, || Ok(()))?;
+        Ok(StepReport {
+            min_det_f: inv.min_det_f,
+            inverted: inv.inverted,
+            iterations: self.params.iterations,
+            residual,
+            contacts: 0,
+        })
+    }
+}
+
+impl Solver for PdStepper {
+    type Params = PdParams;
+    const NAME: &'static str = "pd";
+    const CAPABILITIES: Capabilities = Capabilities {
+        title: "Projective Dynamics",
+        summary: "Projective Dynamics (Bouaziz et al. 2014), co-rotational energy only: local projections per triangle, one global matrix factorised once",
+        paper: false,
+        contact: false,
+        implicit: true,
+        iterations: true,
+        substeps: false,
+        factorisation: true,
+        deterministic_across_threads: true,
+        clock: Clock::Time,
+        converges_to: "each step to implicit Euler's as iterations grow (the co-rotational energy is exactly two projective terms, area term included)",
+    };
+
+    fn validate_params(p: &PdParams, prefix: &str) -> Result<(), SolverError> {
+        p.validate_as(prefix)
+    }
+
+    fn build<E: Energy>(model: &Model<E>, p: &PdParams) -> Result<Self, SolverError> {
+        PdStepper::new(model, *p)
+    }
+
+    fn dt_mut(p: &mut PdParams) -> Option<&mut Real> {
+        Some(&mut p.dt)
+    }
+}

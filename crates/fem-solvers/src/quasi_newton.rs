@@ -1,0 +1,531 @@
+//! Quasi-Newton implicit Euler: L-BFGS on the incremental potential with Projective Dynamics'
+//! matrix as the initial Hessian (Liu, Bouaziz & Kavan, "Quasi-Newton Methods for Real-Time
+//! Simulation of Hyperelastic Materials", ACM TOG 36(3), 2017), for every energy.
+//!
+//! Each step of length `h` minimises implicit Euler's incremental potential
+//! `G(x) = sum m/(2 h^2) |x - x_hat|^2 - f . x + sum_e a_e psi(F_e)` ([`crate::implicit`]) over
+//! the free vertices, from `x_hat + h^2 f / m` (or, when that inverts a triangle of an energy
+//! forbidding inversion, from the current positions with the kinematic vertices moved). Each
+//! iteration:
+//! - the direction `d = -H g` by L-BFGS's two-loop recursion over the last `history` pairs
+//!   `(s, y)` of position and gradient changes, with the initial inverse Hessian `A^-1`,
+//!   `A = M / h^2 + L` the Projective Dynamics matrix of the energy's Lamé parameters at rest
+//!   ([`PdSystem`]; for the co-rotational energy the exact PD matrix), factorised once when the
+//!   stepper is built, so an iteration costs a gradient, one or more potential evaluations and
+//!   two triangular solves;
+//! - a backtracking (Armijo) line search: the step is halved until the potential is finite and
+//!   decreases enough, so a state that inverts a triangle of an energy forbidding inversion
+//!   (Neo-Hookean's `log J`) is never accepted;
+//! - a pair is kept only when `s . y > 0` (curvature), so `H` stays positive definite.
+//!
+//! It stops after `iterations` iterations, or earlier when the gradient's norm falls below
+//! `tolerance` times the force scale (the larger of the first gradient and the external load),
+//! the same test as Newton's ([`crate::newton`]). Unlike implicit Euler, not reaching the
+//! tolerance is not an error: a real-time step has a fixed budget, and the report's residual
+//! says how far it got. With enough iterations it reaches Newton's step to Newton's tolerance
+//! for every energy (`tests/suite/quasi_newton.rs`).
+//!
+//! Contact is not handled yet (refused, as for implicit Euler).
+//!
+//! Registered as `quasi-newton` ([`Solver`]); scene keys `dt`, `iterations`, `history`,
+//! `damping`, `tolerance`, `max_halvings`.
+
+use fem_core::assembly::{Scratch, elastic_energy, populate_forces};
+use fem_core::energy::Energy;
+use fem_core::math::{Real, Vec2};
+
+use crate::commit::{Kinematic, StepEnd};
+use crate::error::{SolverError, check_at_most, check_count, check_non_negative, check_positive};
+use crate::implicit::external_load;
+use crate::kernel::{PackedElement, pack};
+use crate::limits;
+use crate::model::Model;
+use crate::pd_system::{PdSystem, rest_lame};
+use crate::registry::{Capabilities, Clock, Solver};
+use crate::report::StepReport;
+use crate::state::State;
+use crate::vbd::{forbids_inversion, inversion};
+use crate::{Stepper, check_step_inputs};
+
+/// Most `(s, y)` pairs L-BFGS may keep.
+pub const MAX_HISTORY: usize = 100;
+
+/// Parameters of [`QuasiNewtonStepper`] (scene keys: the field names).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(default)
+)]
+pub struct QuasiNewtonParams {
+    /// Time step, s (finite, > 0). Default `1e-3`.
+    pub dt: Real,
+    /// Most L-BFGS iterations per step (>= 1). Default 10.
+    pub iterations: usize,
+    /// `(s, y)` pairs kept (0 to 100; 0 iterates with the PD matrix alone). Default 5.
+    pub history: usize,
+    /// Velocity damping rate `c`, 1/s (`v <- v exp(-c dt)` each step). Default 0.
+    pub damping: Real,
+    /// Stop when the gradient's norm is below `tolerance` times the force scale; in the open
+    /// interval `(0, 1)`. Default `1e-8`.
+    pub tolerance: Real,
+    /// Most halvings of the line search. Default 40.
+    pub max_halvings: usize,
+}
+
+impl Default for QuasiNewtonParams {
+    fn default() -> Self {
+        QuasiNewtonParams {
+            dt: 1e-3,
+            iterations: 10,
+            history: 5,
+            damping: 0.0,
+            tolerance: 1e-8,
+            max_halvings: 40,
+        }
+    }
+}
+
+impl QuasiNewtonParams {
+    /// Check every field; errors name `quasi-newton.<field>`.
+    pub fn validate(&self) -> Result<(), SolverError> {
+        self.validate_as(QuasiNewtonStepper::NAME)
+    }
+
+    /// Check every field; errors name `<prefix>.<field>`.
+    pub fn validate_as(&self, prefix: &str) -> Result<(), SolverError> {
+        let field = |name: &str| format!("{prefix}.{name}");
+        check_positive(&field("dt"), self.dt)?;
+        check_count(
+            &field("iterations"),
+            self.iterations,
+            limits::MAX_NEWTON_ITERATIONS,
+        )?;
+        check_at_most(&field("history"), self.history, MAX_HISTORY)?;
+        check_non_negative(&field("damping"), self.damping)?;
+        if !(self.tolerance > 0.0 && self.tolerance < 1.0) {
+            return Err(SolverError::invalid(
+                field("tolerance"),
+                self.tolerance,
+                "must be in the open interval (0, 1)",
+            ));
+        }
+        check_at_most(
+            &field("max_halvings"),
+            self.max_halvings,
+            limits::MAX_HALVINGS,
+        )
+    }
+}
+
+/// What the last step did, beyond its [`StepReport`].
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct QuasiNewtonReport {
+    /// Iterations taken.
+    pub iterations: usize,
+    /// Whether the gradient reached the tolerance.
+    pub converged: bool,
+    /// Gradient norm after every iteration (the first entry before any), N.
+    pub residuals: Vec<Real>,
+    /// Potential evaluations of the line searches.
+    pub evaluations: usize,
+    /// Whether the starting guess was replaced by the current positions.
+    pub fallback_guess: bool,
+}
+
+/// L-BFGS with the Projective Dynamics matrix; see the module docs.
+#[derive(Debug)]
+pub struct QuasiNewtonStepper {
+    params: QuasiNewtonParams,
+    decay: Real,
+    n_triangles: usize,
+    els: Vec<PackedElement>,
+    system: PdSystem,
+    forbids_inversion: bool,
+    /// The modulus times the body's area: the scale of the round-off of the elastic energy.
+    psi_scale: Real,
+    /// Free vertices, increasing; packed vectors are `[x of each, then y of each]`.
+    free: Vec<u32>,
+    target: Vec<Vec2>,
+    load: Vec<Vec2>,
+    x: Vec<Vec2>,
+    trial: Vec<Vec2>,
+    v_new: Vec<Vec2>,
+    forces: Vec<Vec2>,
+    scratch: Scratch,
+    g: Vec<Real>,
+    g_new: Vec<Real>,
+    d: Vec<Real>,
+    /// Ring of `(s, y, 1 / (s . y))`, oldest first from `head`.
+    s: Vec<Vec<Real>>,
+    y: Vec<Vec<Real>>,
+    rho: Vec<Real>,
+    alpha: Vec<Real>,
+    pairs: usize,
+    head: usize,
+    last: QuasiNewtonReport,
+}
+
+fn dot(a: &[Real], b: &[Real]) -> Real {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+impl QuasiNewtonStepper {
+    /// A stepper for `model`: validates the parameters, refuses contact geometry, and
+    /// assembles and factorises the Projective Dynamics matrix.
+    pub fn new<E: Energy>(
+        model: &Model<E>,
+        params: QuasiNewtonParams,
+    ) -> Result<Self, SolverError> {
+        params.validate()?;
+        if model.has_contact() {
+            return Err(SolverError::invalid(
+                "quasi-newton.contact",
+                "ground or obstacles",
+                "contact is handled by the explicit, PBD and XPBD steppers only",
+            ));
+        }
+        let mesh = model.mesh();
+        let n = mesh.n_vertices();
+        let (mu, lambda) = rest_lame(model.energy());
+        let weights: Vec<Real> = mesh
+            .elements()
+            .iter()
+            .map(|e| 2.0 * e.area * (mu + lambda))
+            .collect();
+        let mut kinematic = vec![false; n];
+        for v in model.kinematics().vertices() {
+            kinematic[v] = true;
+        }
+        let h = params.dt;
+        let system = PdSystem::new(
+            mesh,
+            model.masses(),
+            &weights,
+            1.0 / (h * h),
+            &kinematic,
+            "quasi-newton",
+        )?;
+        let free: Vec<u32> = (0..n as u32).filter(|&v| !kinematic[v as usize]).collect();
+        let m = 2 * free.len();
+        let hist = params.history;
+        Ok(QuasiNewtonStepper {
+            decay: (-params.damping * h).exp(),
+            params,
+            n_triangles: mesh.n_triangles(),
+            els: pack(mesh),
+            system,
+            forbids_inversion: forbids_inversion(model.energy()),
+            psi_scale: (2.0 * mu + lambda).abs() * mesh.area(),
+            free,
+            target: vec![Vec2::zeros(); n],
+            load: vec![Vec2::zeros(); n],
+            x: vec![Vec2::zeros(); n],
+            trial: vec![Vec2::zeros(); n],
+            v_new: vec![Vec2::zeros(); n],
+            forces: vec![Vec2::zeros(); n],
+            scratch: Scratch::new(),
+            g: vec![0.0; m],
+            g_new: vec![0.0; m],
+            d: vec![0.0; m],
+            s: vec![vec![0.0; m]; hist],
+            y: vec![vec![0.0; m]; hist],
+            rho: vec![0.0; hist],
+            alpha: vec![0.0; hist],
+            pairs: 0,
+            head: 0,
+            last: QuasiNewtonReport::default(),
+        })
+    }
+
+    /// The parameters.
+    pub fn params(&self) -> &QuasiNewtonParams {
+        &self.params
+    }
+
+    /// What the last step did.
+    pub fn last_report(&self) -> &QuasiNewtonReport {
+        &self.last
+    }
+
+    /// Numeric factorisations of the initial Hessian since the stepper was built: one.
+    pub fn factorisations(&self) -> usize {
+        self.system.factorisations()
+    }
+
+    /// The potential at `x` (load work measured from the rest positions, as Newton's) and the
+    /// sum of its terms' magnitudes (the scale of its round-off); when `gradient` is given,
+    /// also its gradient over the free vertices, packed.
+    fn evaluate<E: Energy>(
+        &mut self,
+        model: &Model<E>,
+        w: Real,
+        which: Which,
+        gradient: Option<Which>,
+    ) -> (Real, Real) {
+        let x = match which {
+            Which::X => &self.x,
+            Which::Trial => &self.trial,
+        };
+        let mesh = model.mesh();
+        let mut e = elastic_energy(mesh, model.energy(), x, &mut self.scratch);
+        let mut magnitude = e.abs();
+        for (i, (p, x0)) in x.iter().zip(mesh.vertices()).enumerate() {
+            let inertia = 0.5 * w * model.masses()[i] * (p - self.target[i]).norm_squared();
+            let work = self.load[i].dot(&(p - x0));
+            e += inertia - work;
+            magnitude += inertia + work.abs();
+        }
+        if gradient.is_some() && e.is_finite() {
+            populate_forces(mesh, model.energy(), x, &mut self.forces, &mut self.scratch);
+            let n = self.free.len();
+            let out = match gradient {
+                Some(Which::X) => &mut self.g,
+                _ => &mut self.g_new,
+            };
+            for (k, &v) in self.free.iter().enumerate() {
+                let v = v as usize;
+                let gv = (x[v] - self.target[v]) * (w * model.masses()[v])
+                    - self.load[v]
+                    - self.forces[v];
+                out[k] = gv.x;
+                out[n + k] = gv.y;
+            }
+        }
+        (e, magnitude)
+    }
+
+    /// `d = -H g` by the two-loop recursion with `H0 = A^-1`.
+    fn direction(&mut self) {
+        let hist = self.params.history;
+        for (d, g) in self.d.iter_mut().zip(&self.g) {
+            *d = -g;
+        }
+        // Newest to oldest.
+        for k in (0..self.pairs).rev() {
+            let i = (self.head + k) % hist.max(1);
+            let a = self.rho[i] * dot(&self.s[i], &self.d);
+            self.alpha[i] = a;
+            for (d, y) in self.d.iter_mut().zip(&self.y[i]) {
+                *d -= a * y;
+            }
+        }
+        self.system.solve(&mut self.d);
+        // Oldest to newest.
+        for k in 0..self.pairs {
+            let i = (self.head + k) % hist.max(1);
+            let b = self.rho[i] * dot(&self.y[i], &self.d);
+            let a = self.alpha[i];
+            for (d, s) in self.d.iter_mut().zip(&self.s[i]) {
+                *d += (a - b) * s;
+            }
+        }
+    }
+
+    /// Keep the pair `(s, y)` = (trial - x, g_new - g) if its curvature `s . y` is positive
+    /// (beyond round-off), replacing the oldest when the history is full.
+    fn remember(&mut self) {
+        let hist = self.params.history;
+        if hist == 0 {
+            return;
+        }
+        let n = self.free.len();
+        let (mut sy, mut yy) = (0.0, 0.0);
+        for (k, &v) in self.free.iter().enumerate() {
+            let ds = self.trial[v as usize] - self.x[v as usize];
+            let dy = Vec2::new(self.g_new[k] - self.g[k], self.g_new[n + k] - self.g[n + k]);
+            sy += ds.dot(&dy);
+            yy += dy.norm_squared();
+        }
+        if !(sy.is_finite() && sy > Real::EPSILON * yy) {
+            return;
+        }
+        let slot = (self.head + self.pairs) % hist;
+        if self.pairs == hist {
+            self.head = (self.head + 1) % hist;
+        } else {
+            self.pairs += 1;
+        }
+        for (k, &v) in self.free.iter().enumerate() {
+            let ds = self.trial[v as usize] - self.x[v as usize];
+            self.s[slot][k] = ds.x;
+            self.s[slot][n + k] = ds.y;
+        }
+        for ((y, a), b) in self.y[slot].iter_mut().zip(&self.g_new).zip(&self.g) {
+            *y = a - b;
+        }
+        self.rho[slot] = 1.0 / sy;
+    }
+}
+
+/// Which position buffer an evaluation reads.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Which {
+    X,
+    Trial,
+}
+
+impl Stepper for QuasiNewtonStepper {
+    fn dt(&self) -> Real {
+        self.params.dt
+    }
+
+    fn step<E: Energy>(
+        &mut self,
+        model: &Model<E>,
+        state: &mut State,
+    ) -> Result<StepReport, SolverError> {
+        check_step_inputs(model, self.n_triangles, state)?;
+        let (h, t) = (self.params.dt, state.t);
+        let w = 1.0 / (h * h);
+        external_load(model, &mut self.load);
+        let masses = model.masses();
+        for (i, ((xh, x), v)) in self
+            .target
+            .iter_mut()
+            .zip(&state.x)
+            .zip(&state.v)
+            .enumerate()
+        {
+            *xh = x + h * v;
+            self.x[i] = *xh + self.load[i] * (h * h / masses[i]);
+        }
+        let kinematics = model.kinematics();
+        kinematics.apply(t, h, &state.x, &mut self.x, &mut self.v_new);
+        let mut report = QuasiNewtonReport::default();
+        let (mut energy, mut magnitude) = self.evaluate(model, w, Which::X, Some(Which::X));
+        if !energy.is_finite()
+            || (self.forbids_inversion && inversion(&self.els, &self.x).inverted > 0)
+        {
+            self.x.copy_from_slice(&state.x);
+            kinematics.apply(t, h, &state.x, &mut self.x, &mut self.v_new);
+            (energy, magnitude) = self.evaluate(model, w, Which::X, Some(Which::X));
+            report.fallback_guess = true;
+        }
+        self.pairs = 0;
+        self.head = 0;
+        let load_norm = self
+            .free
+            .iter()
+            .map(|&v| self.load[v as usize].norm_squared())
+            .sum::<Real>()
+            .sqrt();
+        let mut gnorm = dot(&self.g, &self.g).sqrt();
+        let scale = gnorm.max(load_norm);
+        report.residuals.push(gnorm);
+        while report.iterations < self.params.iterations && energy.is_finite() {
+            if gnorm <= self.params.tolerance * scale {
+                report.converged = true;
+                break;
+            }
+            self.direction();
+            let mut slope = dot(&self.g, &self.d);
+            if slope >= 0.0 || !slope.is_finite() {
+                // Not a descent direction (round-off in the history): restart from A^-1.
+                self.pairs = 0;
+                self.head = 0;
+                self.direction();
+                slope = dot(&self.g, &self.d);
+            }
+            let n = self.free.len();
+            let mut alpha = 1.0;
+            let mut accepted = false;
+            for _ in 0..=self.params.max_halvings {
+                self.trial.copy_from_slice(&self.x);
+                for (k, &v) in self.free.iter().enumerate() {
+                    self.trial[v as usize] += Vec2::new(self.d[k], self.d[n + k]) * alpha;
+                }
+                let (e, m) = self.evaluate(model, w, Which::Trial, None);
+                report.evaluations += 1;
+                if !e.is_finite() {
+                    alpha *= 0.5;
+                    continue;
+                }
+                // Near the minimum the change of the potential falls below its round-off (eps
+                // times its terms, and psi's terms are of the order of the modulus, not of
+                // psi): there the trial is accepted if it lowers the gradient instead, as in
+                // Newton's line search.
+                let armijo = e <= energy + 1e-4 * alpha * slope;
+                let in_round_off = (e - energy).abs() <= 1e-12 * (magnitude + m + self.psi_scale);
+                let lowers_gradient = !armijo && in_round_off && {
+                    self.evaluate(model, w, Which::Trial, Some(Which::Trial));
+                    dot(&self.g_new, &self.g_new).sqrt() < gnorm
+                };
+                if armijo || lowers_gradient {
+                    (energy, magnitude) = (e, m);
+                    accepted = true;
+                    break;
+                }
+                alpha *= 0.5;
+            }
+            report.iterations += 1;
+            if !accepted {
+                break;
+            }
+            self.evaluate(model, w, Which::Trial, Some(Which::Trial));
+            self.remember();
+            std::mem::swap(&mut self.x, &mut self.trial);
+            std::mem::swap(&mut self.g, &mut self.g_new);
+            gnorm = dot(&self.g, &self.g).sqrt();
+            report.residuals.push(gnorm);
+        }
+        if gnorm <= self.params.tolerance * scale {
+            report.converged = true;
+        }
+        let inv = inversion(&self.els, &self.x);
+        for ((v, xn), x) in self.v_new.iter_mut().zip(&self.x).zip(&state.x) {
+            *v = (xn - x) / h * self.decay;
+        }
+        StepEnd {
+            kinematics: Kinematic::Schedule { t, dt: h },
+            x: &mut self.x,
+            v: &mut self.v_new,
+            bodies: None,
+            known_finite: false,
+            inverted: inv.inverted,
+            min_det_f: inv.min_det_f,
+            t_end: t + h,
+            count_step: true,
+        }
+        .commit(model, state, || Ok(()))?;
+        let out = StepReport {
+            min_det_f: inv.min_det_f,
+            inverted: inv.inverted,
+            iterations: report.iterations,
+            residual: gnorm,
+            contacts: 0,
+        };
+        self.last = report;
+        Ok(out)
+    }
+}
+
+impl Solver for QuasiNewtonStepper {
+    type Params = QuasiNewtonParams;
+    const NAME: &'static str = "quasi-newton";
+    const CAPABILITIES: Capabilities = Capabilities {
+        title: "Quasi-Newton",
+        summary: "implicit Euler by L-BFGS with the Projective Dynamics matrix as initial Hessian (Liu et al. 2017), every energy",
+        paper: false,
+        contact: false,
+        implicit: true,
+        iterations: true,
+        substeps: false,
+        factorisation: true,
+        deterministic_across_threads: true,
+        clock: Clock::Time,
+        converges_to: "each step to implicit Euler's (Newton's step to its tolerance) as iterations grow",
+    };
+
+    fn validate_params(p: &QuasiNewtonParams, prefix: &str) -> Result<(), SolverError> {
+        p.validate_as(prefix)
+    }
+
+    fn build<E: Energy>(model: &Model<E>, p: &QuasiNewtonParams) -> Result<Self, SolverError> {
+        QuasiNewtonStepper::new(model, *p)
+    }
+
+    fn dt_mut(p: &mut QuasiNewtonParams) -> Option<&mut Real> {
+        Some(&mut p.dt)
+    }
+}
