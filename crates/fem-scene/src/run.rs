@@ -459,7 +459,23 @@ fn run_with<E: Energy>(
     let mut stepper = build_stepper(scene, &model)?;
     let probes = resolve_probes(scene, model.mesh());
     let time_step_warning = stepper.time_step_warning();
-    let mut state = State::at_rest(&model);
+    let mut state = match &s.initial {
+        None => State::at_rest(&model),
+        Some(init) => {
+            let x = model
+                .mesh()
+                .vertices()
+                .iter()
+                .map(|p| {
+                    let q = init.apply([p.x, p.y]);
+                    Vec2::new(q[0], q[1])
+                })
+                .collect();
+            let v = vec![Vec2::zeros(); model.mesh().n_vertices()];
+            State::new(&model, x, v)
+                .map_err(|e| SceneError::Scene(format!("{}: initial: {e}", scene.origin)))?
+        }
+    };
     let (lo, hi) = bounds(model.mesh().vertices());
     let mut rec = Recorder {
         formula: von_mises_formula(scene),

@@ -69,6 +69,31 @@ pub struct Scene {
     /// Output cadence and contents.
     #[serde(default)]
     pub output: OutputSpec,
+    /// The body's configuration at t = 0, if not its rest shape.
+    #[serde(default)]
+    pub initial: Option<InitialSpec>,
+}
+
+/// The `[initial]` table: the body starts scaled about a point, at rest (zero velocity), e.g.
+/// squashed to 10 % of its height and released.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InitialSpec {
+    /// Scale factors along x and y (finite, > 0): `x = origin + scale * (X - origin)`.
+    pub scale: [f64; 2],
+    /// The fixed point of the scaling, m. Default `[0, 0]`.
+    #[serde(default)]
+    pub origin: [f64; 2],
+}
+
+impl InitialSpec {
+    /// The initial position of the rest position `p`.
+    pub fn apply(&self, p: [f64; 2]) -> [f64; 2] {
+        [
+            self.origin[0] + self.scale[0] * (p[0] - self.origin[0]),
+            self.origin[1] + self.scale[1] * (p[1] - self.origin[1]),
+        ]
+    }
 }
 
 fn default_energy() -> EnergyKind {
@@ -787,6 +812,18 @@ impl LoadedScene {
             }
             if let Some(mu) = c.friction {
                 non_negative("contact.friction", mu, "dimensionless")?;
+            }
+        }
+        if let Some(init) = &s.initial {
+            point("initial.origin", init.origin)?;
+            for (k, &c) in init.scale.iter().enumerate() {
+                if !(c.is_finite() && c > 0.0) {
+                    return Err(self.error(
+                        &format!("initial.scale.{k}"),
+                        c,
+                        "must be a finite number > 0",
+                    ));
+                }
             }
         }
         for (i, p) in s.probes.iter().enumerate() {

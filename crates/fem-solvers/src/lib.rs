@@ -134,7 +134,9 @@ pub use explicit::{ExplicitParams, ExplicitScheme, ExplicitStepper};
 pub use implicit::{ImplicitParams, ImplicitStepper};
 pub use model::{Model, TimeStepCheck};
 pub use newton::{NewtonParams, NewtonReport};
-pub use position_based::{Ordering, PbdParams, PbdStepper, XpbdForm, XpbdParams, XpbdStepper};
+pub use position_based::{
+    LambdaReset, Ordering, PbdParams, PbdStepper, XpbdForm, XpbdParams, XpbdSchedule, XpbdStepper,
+};
 pub use projective::{PdParams, PdStepper};
 pub use quasi_newton::{QuasiNewtonParams, QuasiNewtonReport, QuasiNewtonStepper};
 pub use registry::{

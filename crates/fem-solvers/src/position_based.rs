@@ -53,10 +53,15 @@
 //! within a colour no two constraints share a vertex, so parallel evaluation followed by
 //! application equals the in-place serial sweep, and Jacobi sums per vertex in element order.
 //!
+//! **XPBD settings** ([`XpbdSchedule`], [`LambdaReset`]): "small steps" (Macklin et al. 2019)
+//! spends the `substeps x iterations` sweeps as that many substeps of one sweep; resetting the
+//! multipliers before every sweep is available only to show that it stiffens the body with the
+//! iterations.
+//!
 //! Registered as `pbd` and `xpbd` ([`Solver`]); scene keys: `dt`, `substeps`, `iterations`,
 //! `damping`, `ordering` (`"gauss-seidel"` | `"coloured"` | `"jacobi"`), `relaxation`,
 //! `rest_threshold`, and PBD's `stiffness` or XPBD's `compliance` and `xpbd_form`
-//! (`"consistent"` | `"literal"`).
+//! (`"consistent"` | `"literal"`), `xpbd_schedule` and `xpbd_lambda_reset`.
 
 use fem_core::energy::Energy;
 use fem_core::math::{Real, Vec2};
@@ -159,8 +164,44 @@ pub enum XpbdForm {
     Literal,
 }
 
+/// How XPBD spends its `substeps x iterations` constraint sweeps per step. Serde names:
+/// `iterations`, `small-steps`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(rename_all = "kebab-case")
+)]
+pub enum XpbdSchedule {
+    /// `substeps` substeps of `iterations` sweeps each, as given. Default.
+    #[default]
+    Iterations,
+    /// "Small steps" (Macklin, Storey, Lu, Terdiman, Chentanez, Jeschke & Müller, "Small Steps
+    /// in Physics Simulation", SCA 2019): the same number of sweeps spent as
+    /// `substeps x iterations` substeps of one sweep each.
+    SmallSteps,
+}
+
+/// When XPBD's multipliers `lambda` return to zero. Serde names: `step`, `iteration`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(rename_all = "kebab-case")
+)]
+pub enum LambdaReset {
+    /// At the start of each (sub)step, accumulating over its sweeps (Algorithm II). Default.
+    #[default]
+    Step,
+    /// Before every sweep. This exists only to show why it is wrong: each sweep then solves
+    /// for the whole constraint force again from the current positions, so the corrections of
+    /// the sweeps add up and the body gets stiffer with every extra iteration, like PBD
+    /// (`tests/suite/position_based.rs` measures it).
+    Iteration,
+}
+
 /// Parameters of [`XpbdStepper`] (scene keys: the field names, with `form` read as
-/// `xpbd_form`).
+/// `xpbd_form`, `schedule` as `xpbd_schedule` and `lambda_reset` as `xpbd_lambda_reset`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(
     feature = "serde",
@@ -192,6 +233,13 @@ pub struct XpbdParams {
     /// Skip a constraint when `psi <= rest_threshold * M` (see the module docs),
     /// dimensionless. Default `1e-14`.
     pub rest_threshold: Real,
+    /// How the sweeps are spent (scene key `xpbd_schedule`). Default as given.
+    #[cfg_attr(feature = "serde", serde(rename = "xpbd_schedule"))]
+    pub schedule: XpbdSchedule,
+    /// When the multipliers return to zero (scene key `xpbd_lambda_reset`). Default each
+    /// (sub)step.
+    #[cfg_attr(feature = "serde", serde(rename = "xpbd_lambda_reset"))]
+    pub lambda_reset: LambdaReset,
 }
 
 impl Default for XpbdParams {
@@ -206,6 +254,8 @@ impl Default for XpbdParams {
             ordering: Ordering::default(),
             relaxation: 1.0,
             rest_threshold: 1e-14,
+            schedule: XpbdSchedule::default(),
+            lambda_reset: LambdaReset::default(),
         }
     }
 }
@@ -258,6 +308,18 @@ impl XpbdParams {
         check_non_negative(&field("compliance"), self.compliance)?;
         check_non_negative(&field("damping"), self.damping)?;
         check_relaxation(&field("relaxation"), self.relaxation)?;
+        if self.schedule == XpbdSchedule::SmallSteps
+            && self.substeps.saturating_mul(self.iterations) > limits::MAX_SUBSTEPS
+        {
+            return Err(SolverError::invalid(
+                field("iterations"),
+                self.iterations,
+                format!(
+                    "with xpbd_schedule = \"small-steps\", substeps x iterations must be at most {} (fem_solvers::limits::MAX_SUBSTEPS)",
+                    limits::MAX_SUBSTEPS
+                ),
+            ));
+        }
         check_non_negative(&field("rest_threshold"), self.rest_threshold)
     }
 }
@@ -400,6 +462,8 @@ struct Engine {
     ranges: Vec<(usize, usize)>,
     n_colours: usize,
     lambda: Vec<Real>,
+    /// Zero the multipliers before every sweep ([`LambdaReset::Iteration`]).
+    reset_lambda_each_sweep: bool,
     x_pred: Vec<Vec2>,
     v_new: Vec<Vec2>,
     corrections: Vec<Projection>,
@@ -529,6 +593,7 @@ impl Engine {
             n_triangles: mesh.n_triangles(),
             n_colours,
             lambda: Vec::new(),
+            reset_lambda_each_sweep: false,
             x_pred: Vec::new(),
             v_new: Vec::new(),
             corrections: Vec::new(),
@@ -622,7 +687,10 @@ impl Engine {
         let psi_threshold = self.rest_threshold * model.p_wave_modulus();
         let mut stats = SweepStats::EMPTY;
         let mut contacts = 0;
-        for _ in 0..self.iterations {
+        for k in 0..self.iterations {
+            if self.reset_lambda_each_sweep && k > 0 {
+                self.lambda.fill(0.0);
+            }
             stats = self.sweep(
                 model.energy(),
                 model.mesh().adjacency(),
@@ -938,20 +1006,23 @@ impl XpbdStepper {
                 alpha_tilde: params.compliance,
             },
         };
-        Ok(XpbdStepper {
-            engine: Engine::new(
-                model,
-                params.dt,
-                params.substeps,
-                params.iterations,
-                params.damping,
-                params.rest_threshold,
-                params.ordering,
-                params.relaxation,
-                rule,
-            ),
-            params,
-        })
+        let (substeps, iterations) = match params.schedule {
+            XpbdSchedule::Iterations => (params.substeps, params.iterations),
+            XpbdSchedule::SmallSteps => (params.substeps * params.iterations, 1),
+        };
+        let mut engine = Engine::new(
+            model,
+            params.dt,
+            substeps,
+            iterations,
+            params.damping,
+            params.rest_threshold,
+            params.ordering,
+            params.relaxation,
+            rule,
+        );
+        engine.reset_lambda_each_sweep = params.lambda_reset == LambdaReset::Iteration;
+        Ok(XpbdStepper { engine, params })
     }
 }
 

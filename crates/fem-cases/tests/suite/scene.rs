@@ -834,6 +834,7 @@ fn docs_describe_every_field() {
         &rest[..end]
     };
     let traction = "traction=[{min = [5.0, 0.0], max = [5.0, 1.0], traction = [0.0, 1.0]}]";
+    let initial = "initial={scale = [1.0, 0.5]}";
     for (case, pre, table, heading) in [
         ("case-a", None, "", "Top level"),
         ("case-a", None, "mesh", "`[mesh]`"),
@@ -847,6 +848,7 @@ fn docs_describe_every_field() {
         ("case-a", None, "contact", "`[contact]`"),
         ("case-a", None, "probes.0", "`[[probes]]`"),
         ("case-a", None, "output", "`[output]`"),
+        ("case-a", Some(initial), "initial", "`[initial]`"),
     ] {
         let text = section(heading);
         let pre: Vec<&str> = pre.into_iter().collect();

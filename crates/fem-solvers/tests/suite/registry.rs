@@ -163,7 +163,9 @@ mod serde_keys {
                 "relaxation",
                 "rest_threshold",
                 "substeps",
-                "xpbd_form"
+                "xpbd_form",
+                "xpbd_lambda_reset",
+                "xpbd_schedule"
             ]
         );
         assert_eq!(

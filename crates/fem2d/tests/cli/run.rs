@@ -638,6 +638,10 @@ fn bad_input_is_one_error_line_and_no_output() {
             vec!["solver.max_iterations = 100000000"],
         ),
         (
+            vec!["case-a", "--set", "initial.scale=[1.0, 0.0]"],
+            vec!["initial.scale.1 = 0: must be a finite number > 0"],
+        ),
+        (
             vec!["case-a", "--steps", "10000000000"],
             vec!["solver.steps = 10000000000", "at most 1000000000"],
         ),
