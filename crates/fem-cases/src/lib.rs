@@ -28,6 +28,7 @@
 //! assert!((tip[1] + 0.049).abs() < 0.003);
 //! ```
 
+pub mod budget;
 pub mod compare;
 pub mod figures;
 pub mod files;

@@ -24,6 +24,11 @@ enum Command {
     // Negative numbers are values (`--alpha -1` reaches validation, which names the flag).
     #[command(allow_negative_numbers = true)]
     Compare(Box<cli::compare::CompareArgs>),
+    /// Which energy x framework fits a real-time frame (90 Hz, 5 ms by default), at which
+    /// setting, and how wrong it is against a converged reference.
+    // Negative numbers are values (`--alpha -1` reaches validation, which names the flag).
+    #[command(allow_negative_numbers = true)]
+    Budget(Box<cli::budget::BudgetArgs>),
     /// Regenerate the paper's Table 1 (case A) beside the paper's values; calibration scan.
     // Negative numbers are values (`--alpha -1` reaches validation, which names the flag).
     #[command(allow_negative_numbers = true)]
@@ -89,6 +94,7 @@ fn main() -> std::process::ExitCode {
     let result = match args.command {
         Command::Run(a) => cli::run::run(&a),
         Command::Compare(a) => cli::compare::run(&a),
+        Command::Budget(a) => cli::budget::run(&a),
         Command::Table1(a) => cli::table1::run(&a),
         Command::Sweep(a) => cli::sweep::run_sweep(&a),
         Command::Merge(a) => cli::sweep::run_merge(&a),

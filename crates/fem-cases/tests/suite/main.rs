@@ -1,6 +1,7 @@
 //! Library tests of fem-cases, in one test binary: the claims of the paper's Section 4 on the
 //! built-in cases, and the golden summaries.
 
+mod budget;
 mod cases;
 mod goldens;
 mod scene;

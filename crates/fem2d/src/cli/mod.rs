@@ -1,5 +1,6 @@
 //! One module per `fem2d` subcommand.
 
+pub mod budget;
 pub mod compare;
 pub mod mesh;
 pub mod report;

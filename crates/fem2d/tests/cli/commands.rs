@@ -1,4 +1,4 @@
-//! `fem2d compare`, `table1`, `sweep` and `merge` end to end: the files they write, shards that
+//! `fem2d compare`, `budget`, `table1`, `sweep` and `merge` end to end: the files they write, shards that
 //! cover a sweep exactly once, the merge's refusal of incomplete or mixed shards, and one-line
 //! errors for bad input.
 
@@ -418,4 +418,70 @@ fn merge_refuses_conflicts_and_sweeps_refuse_bad_axes_and_references() {
             .to_owned();
         assert!(error.contains(want), "{name}: {error}");
     }
+}
+
+#[test]
+fn budget_writes_the_ranked_table_the_charts_and_the_trajectories() {
+    let dir = scratch("budget");
+    let out = dir.join("b");
+    let stdout = ok(&fem2d(&[
+        "budget",
+        "case-a",
+        "--energies",
+        "neo-hookean",
+        "--frameworks",
+        "explicit,vbd,pd",
+        "--duration",
+        "0.2",
+        "--out",
+        arg(&out),
+    ]));
+    assert!(
+        stdout.contains("neo-hookean at 90 Hz within 5 ms per frame: explicit"),
+        "{stdout}"
+    );
+    assert!(stdout.contains("cannot run: Projective Dynamics runs the co-rotational energy only"));
+    for f in [
+        "budget.md",
+        "budget.csv",
+        "budget.json",
+        "pareto-neo-hookean.svg",
+        "pareto-neo-hookean.png",
+        "trajectories.json",
+    ] {
+        assert!(out.join(f).is_file(), "{f}");
+    }
+    let csv = std::fs::read_to_string(out.join("budget.csv")).unwrap();
+    assert!(csv.lines().count() > 10, "{csv}");
+    // The haptics preset: 1 kHz, 0.5 ms.
+    let stdout = ok(&fem2d(&[
+        "budget",
+        "case-a",
+        "--haptics",
+        "--energies",
+        "corotational",
+        "--frameworks",
+        "pd",
+        "--duration",
+        "0.05",
+    ]));
+    assert!(
+        stdout.contains("at 1000 Hz, 0.500 ms per frame"),
+        "{stdout}"
+    );
+}
+
+#[test]
+fn budget_rejects_bad_settings_in_one_line() {
+    let e = one_line_error(&fem2d(&["budget", "case-a", "--fps", "0"]));
+    assert!(e.contains("--fps 0: must be a finite number > 0"), "{e}");
+    let e = one_line_error(&fem2d(&["budget", "case-a", "--budget-ms", "-1"]));
+    assert!(e.contains("--budget-ms -1"), "{e}");
+    let e = one_line_error(&fem2d(&["budget", "case-a", "--frameworks", "rk4"]));
+    assert!(
+        e.contains("unknown framework `rk4`") && e.contains("xpbd-small-steps"),
+        "{e}"
+    );
+    let e = one_line_error(&fem2d(&["budget", "case-a", "--duration", "1e9"]));
+    assert!(e.contains("at most 100000"), "{e}");
 }

@@ -1,0 +1,90 @@
+//! `fem2d budget`: which energy x framework fits a real-time frame, at which setting, and how
+//! wrong it is (see `fem_cases::budget`).
+
+use std::path::PathBuf;
+
+use clap::Args;
+use fem_cases::budget::{BudgetSpec, Framework, budget};
+use fem_cases::files::load_case_or_file;
+use fem_cases::outdir::OutDir;
+use fem_core::energy::EnergyKind;
+
+use super::run::SceneArgs;
+
+/// Flags of `fem2d budget`.
+#[derive(Debug, Args)]
+pub struct BudgetArgs {
+    #[command(flatten)]
+    pub scene: SceneArgs,
+    /// Frames per second: every framework advances 1/fps per frame (default 90; 1000 with
+    /// --haptics).
+    #[arg(long)]
+    pub fps: Option<f64>,
+    /// Physics budget per frame on one thread, ms (default 5; 0.5 with --haptics).
+    #[arg(long = "budget-ms")]
+    pub budget_ms: Option<f64>,
+    /// The haptics preset: 1 kHz and 0.5 ms per frame.
+    #[arg(long)]
+    pub haptics: bool,
+    /// Simulated seconds (default: the scene's steps x dt).
+    #[arg(long)]
+    pub duration: Option<f64>,
+    /// Energies (comma-separated; default all five).
+    #[arg(long, value_delimiter = ',')]
+    pub energies: Vec<String>,
+    /// Frameworks (comma-separated; default all): explicit, pbd, xpbd, xpbd-small-steps, vbd,
+    /// pd, quasi-newton, implicit.
+    #[arg(long, value_delimiter = ',')]
+    pub frameworks: Vec<String>,
+    /// Write budget.md, budget.csv, budget.json, the Pareto charts and trajectories.json here.
+    #[arg(long, value_name = "DIR")]
+    pub out: Option<PathBuf>,
+}
+
+/// Runs `fem2d budget`.
+pub fn run(args: &BudgetArgs) -> Result<(), String> {
+    let mut spec = if args.haptics {
+        BudgetSpec::haptics()
+    } else {
+        BudgetSpec::default()
+    };
+    if let Some(f) = args.fps {
+        spec.fps = f;
+    }
+    if let Some(b) = args.budget_ms {
+        spec.budget_ms = b;
+    }
+    spec.duration = args.duration;
+    if !args.energies.is_empty() {
+        spec.energies = args
+            .energies
+            .iter()
+            .map(|e| {
+                e.parse::<EnergyKind>()
+                    .map_err(|err| format!("--energies: {err}"))
+            })
+            .collect::<Result<_, _>>()?;
+    }
+    if !args.frameworks.is_empty() {
+        spec.frameworks = args
+            .frameworks
+            .iter()
+            .map(|f| Framework::parse(f).map_err(|err| format!("--frameworks: {err}")))
+            .collect::<Result<_, _>>()?;
+    }
+    let base = load_case_or_file(&args.scene.scene, &args.scene.set).map_err(|e| e.to_string())?;
+    // Take the output directory first, so a second writer fails before the runs.
+    let out = match &args.out {
+        Some(target) => Some(OutDir::begin(target).map_err(|e| e.to_string())?),
+        None => None,
+    };
+    let result =
+        budget(&base, &spec, |what| eprintln!("budget: {what}")).map_err(|e| e.to_string())?;
+    print!("{}", result.budget.to_markdown());
+    if let (Some(out), Some(target)) = (out, &args.out) {
+        let written = result.write(out.path()).map_err(|e| e.to_string())?;
+        out.commit().map_err(|e| e.to_string())?;
+        println!("wrote {} in {}", written.join(", "), target.display());
+    }
+    Ok(())
+}
