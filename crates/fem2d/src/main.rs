@@ -85,6 +85,25 @@ fn main() -> std::process::ExitCode {
         }
         std::process::exit(130);
     });
+    // A reader that goes away (`fem2d compare case-a | head -3`) makes the next print fail;
+    // Rust's print macros then panic. That is not a bug to report: the command ends as if
+    // interrupted, quietly, with the exit status of a process killed by SIGPIPE (128 + 13),
+    // leaving every output directory as it was. Any other panic keeps the default report.
+    let default_hook = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        let message = info
+            .payload()
+            .downcast_ref::<String>()
+            .map(String::as_str)
+            .or_else(|| info.payload().downcast_ref::<&str>().copied())
+            .unwrap_or("");
+        if message.starts_with("failed printing to stdout") && message.contains("Broken pipe") {
+            fem_mesh::io::interrupted();
+            fem_cases::outdir::interrupted();
+            std::process::exit(141);
+        }
+        default_hook(info);
+    }));
     // FEM2D_SIMD caps the instruction set of the force kernels; a value naming none is an
     // error rather than silently ignored.
     if let Err(message) = fem_core::simd::Isa::from_env() {

@@ -485,3 +485,35 @@ fn budget_rejects_bad_settings_in_one_line() {
     let e = one_line_error(&fem2d(&["budget", "case-a", "--duration", "1e9"]));
     assert!(e.contains("at most 100000"), "{e}");
 }
+
+/// A reader that goes away before the output is printed (`fem2d budget ... | true`): no panic
+/// message, exit status 141 (as if killed by SIGPIPE), and nothing else on stderr but the
+/// progress lines.
+#[test]
+fn a_reader_that_closes_the_pipe_ends_the_command_quietly() {
+    use std::process::{Command, Stdio};
+    let mut child = Command::new(env!("CARGO_BIN_EXE_fem2d"))
+        .args([
+            "budget",
+            "case-a",
+            "--energies",
+            "corotational",
+            "--frameworks",
+            "pd",
+            "--duration",
+            "0.05",
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Close the reading end before anything is printed.
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(141), "{stderr}");
+    assert!(
+        stderr.lines().all(|l| l.starts_with("budget: ")),
+        "{stderr}"
+    );
+}
