@@ -31,6 +31,8 @@ pub struct ReportOptions {
     pub stability: bool,
     /// Write the animations.
     pub animations: bool,
+    /// Run the frame budget on cases A and D (about 10 s on one core).
+    pub budget: bool,
     /// The command line, shown in the metadata.
     pub command: String,
     /// When the report was made, shown in the metadata (the caller formats it, e.g. RFC 3339
@@ -44,6 +46,7 @@ impl Default for ReportOptions {
             threads: None,
             stability: true,
             animations: true,
+            budget: true,
             command: "fem2d report".into(),
             date: String::new(),
         }
@@ -94,14 +97,25 @@ pub fn write_report(
         Vec::new()
     };
     let animation_seconds = t.elapsed().as_secs_f64();
+    let t = Instant::now();
+    let budgets = if options.budget {
+        frame_budgets(&figures_dir, &mut progress)?
+    } else {
+        Vec::new()
+    };
+    let budget_seconds = t.elapsed().as_secs_f64();
     let mut timings = vec![("Table 1 (3 energies x 3 repeats)".to_owned(), table_seconds)];
     timings.extend(runs.timings.iter().cloned());
     timings.push(("figures and plots".into(), figure_seconds));
     timings.push(("animations".into(), animation_seconds));
+    if options.budget {
+        timings.push(("frame budget (cases A and D)".into(), budget_seconds));
+    }
     let html = page(
         &table,
         &runs,
         &figures,
+        &budgets,
         &animations,
         &figures_dir,
         options,
@@ -110,6 +124,9 @@ pub fn write_report(
     )?;
     let index = dir.join("index.html");
     write_atomic(&index, html.as_bytes())?;
+    for b in budgets {
+        figures.extend(b.charts);
+    }
     figures.extend(animations);
     Ok(ReportSummary {
         index,
@@ -265,11 +282,76 @@ fn machine() -> Vec<(String, String)> {
     ]
 }
 
+/// One case's frame budget in the report: its markdown and its charts.
+struct CaseBudget {
+    name: &'static str,
+    markdown: String,
+    charts: Vec<Figure>,
+}
+
+/// The frame budget (90 Hz, 5 ms per frame, one thread) of case A (the paper's three energies,
+/// 1 s) and case D (its energy, 0.5 s), with one Pareto chart per energy in `dir`.
+fn frame_budgets(
+    dir: &Path,
+    progress: &mut impl FnMut(&str),
+) -> Result<Vec<CaseBudget>, SceneError> {
+    use crate::budget::{BudgetSpec, budget};
+    let mut out = Vec::new();
+    for (name, energies, duration) in [
+        ("case-a", crate::figures::PAPER_ENERGIES.to_vec(), 1.0),
+        (
+            "case-d",
+            vec![fem_core::energy::EnergyKind::NeoHookean],
+            0.5,
+        ),
+    ] {
+        progress(&format!("frame budget: {name}"));
+        let base = fem_scene::cases::load_case(name, &[])?;
+        let spec = BudgetSpec {
+            duration: Some(duration),
+            energies,
+            ..BudgetSpec::default()
+        };
+        let run = budget(&base, &spec, |_| {})?;
+        let mut charts = Vec::new();
+        for (energy, chart) in run.budget.charts() {
+            let file = format!("budget-{name}-{}.png", energy.name());
+            let png = chart
+                .to_png()
+                .and_then(|i| i.to_png())
+                .map_err(|e| SceneError::Io(e.to_string()))?;
+            write_atomic(&dir.join(&file), &png)?;
+            let sentence = run
+                .budget
+                .sentences
+                .iter()
+                .find(|s| s.starts_with(energy.name()))
+                .cloned()
+                .unwrap_or_default();
+            charts.push(Figure {
+                file,
+                title: format!("Frame budget, {name}, {energy}"),
+                caption: format!(
+                    "Position error against the reference (RMS over the mesh and {} frames) against stepping time per frame on one thread, every setting of every framework; the vertical line is the 5 ms budget. {sentence}",
+                    run.budget.frames
+                ),
+            });
+        }
+        out.push(CaseBudget {
+            name,
+            markdown: run.budget.to_markdown(),
+            charts,
+        });
+    }
+    Ok(out)
+}
+
 #[allow(clippy::too_many_arguments)]
 fn page(
     table: &crate::table1::Table1,
     runs: &CaseRuns,
     figures: &[Figure],
+    budgets: &[CaseBudget],
     animations: &[Figure],
     dir: &Path,
     options: &ReportOptions,
@@ -309,6 +391,22 @@ fn page(
             .find("Largest stable time step")
             .map_or(md.as_str(), |k| &md[k..]);
         h.push_str(&markdown_tables_to_html(summary));
+    }
+
+    if !budgets.is_empty() {
+        h.push_str("<h2 id=\"budget\">Frame budget: 90 Hz, 5 ms per frame</h2>\n<p class=\"note\">Every energy x framework at every setting of its ladder, each advancing 1/90 s per frame on one thread, compared frame by frame with a converged reference over the whole mesh (<code>fem2d budget</code>, docs/budget.md). Case C's scene is case A's with StVK, so its budget is case A's StVK table.</p>\n");
+        for b in budgets {
+            let _ = writeln!(h, "<h3>{}</h3>", b.name);
+            let mut items = String::new();
+            for line in b.markdown.lines().filter(|l| l.starts_with("- ")) {
+                let _ = writeln!(items, "<li>{}</li>", escape(&line[2..]));
+            }
+            let _ = writeln!(h, "<ul>\n{items}</ul>");
+            h.push_str(&markdown_tables_to_html(&b.markdown));
+            for f in &b.charts {
+                figure_html(&mut h, f, dir)?;
+            }
+        }
     }
 
     h.push_str("<h2 id=\"animations\">Animations</h2>\n<div class=\"gallery\">\n");

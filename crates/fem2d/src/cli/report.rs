@@ -24,6 +24,9 @@ pub struct ReportArgs {
     /// Skip the animations.
     #[arg(long)]
     pub no_animations: bool,
+    /// Skip the frame budget of cases A and D (about 10 s on one core).
+    #[arg(long)]
+    pub no_budget: bool,
 }
 
 /// Flags of `fem2d figures`.
@@ -62,6 +65,7 @@ pub fn run_report(args: &ReportArgs) -> Result<(), String> {
         threads: args.threads,
         stability: !args.no_stability,
         animations: !args.no_animations,
+        budget: !args.no_budget,
         command,
         date: humantime::format_rfc3339_seconds(std::time::SystemTime::now()).to_string(),
     };

@@ -48,6 +48,8 @@ fn report_has_every_section_and_picture() {
         "Case C: tip deflection",
         "stability map",
         "Animations",
+        "Frame budget: 90 Hz, 5 ms per frame",
+        "neo-hookean at 90 Hz within 5 ms per frame:",
         "Run metadata",
         "Wall time",
         "cores available",
@@ -62,8 +64,9 @@ fn report_has_every_section_and_picture() {
         images_in(&html),
         "an image is not embedded"
     );
-    // 5 figures + 2 curve charts + the stability map + 4 animations.
-    assert_eq!(images_in(&html), 12);
+    // 5 figures + 2 curve charts + the stability map + 4 frame-budget charts (case A's three
+    // energies, case D's) + 4 animations.
+    assert_eq!(images_in(&html), 16);
     for file in [
         "figure-1-mesh-pipeline.png",
         "figure-2-case-a.png",
@@ -77,6 +80,8 @@ fn report_has_every_section_and_picture() {
         "stability-case-b.svg",
         "animation-case-a.gif",
         "animation-case-d.gif",
+        "budget-case-a-stvk.png",
+        "budget-case-d-neo-hookean.png",
     ] {
         let path = dir.join("figures").join(file);
         let size = std::fs::metadata(&path)
