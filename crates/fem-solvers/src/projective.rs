@@ -40,7 +40,6 @@ use fem_core::math::{Mat2, Real, Vec2};
 use fem_core::polar::Polar2;
 use rayon::prelude::*;
 
-use crate::commit::{Kinematic, StepEnd};
 use crate::error::{SolverError, check_count, check_non_negative, check_positive};
 use crate::implicit::external_load;
 use crate::kernel::{ELEMENT_CHUNK, PackedElement, VERTEX_CHUNK, deformation_gradient, pack};
@@ -50,7 +49,7 @@ use crate::pd_system::{PdSystem, rest_lame};
 use crate::registry::{Capabilities, Clock, Solver};
 use crate::report::StepReport;
 use crate::state::State;
-use crate::vbd::{Chebyshev, inversion};
+use crate::vbd::{Chebyshev, commit_positions, corner_gradient};
 use crate::{Stepper, check_step_inputs};
 
 /// Parameters of [`PdStepper`] (scene keys: the field names).
@@ -253,16 +252,7 @@ impl PdStepper {
                     let v = c * VERTEX_CHUNK + k;
                     let mut s = target[v] * (masses[v] * w) + load[v];
                     for &(t, corner) in adj.of(v) {
-                        let el = &els[t as usize];
-                        let d = &el.dm_inv;
-                        let g1 = Vec2::new(d[(0, 0)], d[(0, 1)]);
-                        let g2 = Vec2::new(d[(1, 0)], d[(1, 1)]);
-                        let g = match corner {
-                            0 => -(g1 + g2),
-                            1 => g1,
-                            _ => g2,
-                        };
-                        s += projections[t as usize] * g;
+                        s += projections[t as usize] * corner_gradient(&els[t as usize], corner);
                     }
                     *r = s;
                 }
@@ -331,22 +321,16 @@ impl Stepper for PdStepper {
                     .apply(rho, &mut self.x, &self.free, &self.els, false);
             }
         }
-        let inv = inversion(&self.els, &self.x);
-        for ((v, xn), x) in self.v_new.iter_mut().zip(&self.x).zip(&state.x) {
-            *v = (xn - x) / h * self.decay;
-        }
-        StepEnd {
-            kinematics: Kinematic::Schedule { t, dt: h },
-            x: &mut self.x,
-            v: &mut self.v_new,
-            bodies: None,
-            known_finite: false,
-            inverted: inv.inverted,
-            min_det_f: inv.min_det_f,
-            t_end: t + h,
-            count_step: true,
-        }
-        .commit(model, state, || Ok(()))?;
+        let inv = commit_positions(
+            model,
+            state,
+            &self.els,
+            &mut self.x,
+            &mut self.v_new,
+            h,
+            self.decay,
+            true,
+        )?;
         Ok(StepReport {
             min_det_f: inv.min_det_f,
             inverted: inv.inverted,

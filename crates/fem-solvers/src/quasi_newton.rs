@@ -34,7 +34,6 @@ use fem_core::assembly::{Scratch, elastic_energy, populate_forces};
 use fem_core::energy::Energy;
 use fem_core::math::{Real, Vec2};
 
-use crate::commit::{Kinematic, StepEnd};
 use crate::error::{SolverError, check_at_most, check_count, check_non_negative, check_positive};
 use crate::implicit::external_load;
 use crate::kernel::{PackedElement, pack};
@@ -44,7 +43,7 @@ use crate::pd_system::{PdSystem, rest_lame};
 use crate::registry::{Capabilities, Clock, Solver};
 use crate::report::StepReport;
 use crate::state::State;
-use crate::vbd::{forbids_inversion, inversion};
+use crate::vbd::{commit_positions, forbids_inversion, inversion};
 use crate::{Stepper, check_step_inputs};
 
 /// Most `(s, y)` pairs L-BFGS may keep.
@@ -472,22 +471,16 @@ impl Stepper for QuasiNewtonStepper {
         if gnorm <= self.params.tolerance * scale {
             report.converged = true;
         }
-        let inv = inversion(&self.els, &self.x);
-        for ((v, xn), x) in self.v_new.iter_mut().zip(&self.x).zip(&state.x) {
-            *v = (xn - x) / h * self.decay;
-        }
-        StepEnd {
-            kinematics: Kinematic::Schedule { t, dt: h },
-            x: &mut self.x,
-            v: &mut self.v_new,
-            bodies: None,
-            known_finite: false,
-            inverted: inv.inverted,
-            min_det_f: inv.min_det_f,
-            t_end: t + h,
-            count_step: true,
-        }
-        .commit(model, state, || Ok(()))?;
+        let inv = commit_positions(
+            model,
+            state,
+            &self.els,
+            &mut self.x,
+            &mut self.v_new,
+            h,
+            self.decay,
+            true,
+        )?;
         let out = StepReport {
             min_det_f: inv.min_det_f,
             inverted: inv.inverted,

@@ -216,7 +216,7 @@ pub(crate) fn forbids_inversion<E: Energy>(energy: &E) -> bool {
 
 /// The shape-function gradient of `corner` (see `fem_core::element::Tri3::gradients`).
 #[inline(always)]
-fn corner_gradient(el: &PackedElement, corner: u8) -> Vec2 {
+pub(crate) fn corner_gradient(el: &PackedElement, corner: u8) -> Vec2 {
     let d = &el.dm_inv;
     let g1 = Vec2::new(d[(0, 0)], d[(0, 1)]);
     let g2 = Vec2::new(d[(1, 0)], d[(1, 1)]);
@@ -378,6 +378,41 @@ impl<E: Energy> Local<'_, E> {
         out.rejected = true;
         (xi, out)
     }
+}
+
+/// The end of a step of the solvers that minimise implicit Euler's potential by iterations
+/// (VBD, Projective Dynamics, quasi-Newton): the inversion statistics of the new positions
+/// `x`, the velocities `(x - x_t) / h` damped by `decay` into `v_new`, and the commit (kinematic
+/// vertices on their schedule over `[t, t + h]`). Returns the statistics.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn commit_positions<E: Energy>(
+    model: &Model<E>,
+    state: &mut State,
+    els: &[PackedElement],
+    x: &mut Vec<Vec2>,
+    v_new: &mut Vec<Vec2>,
+    h: Real,
+    decay: Real,
+    count_step: bool,
+) -> Result<Inversion, SolverError> {
+    let inv = inversion(els, x);
+    for ((v, xn), x0) in v_new.iter_mut().zip(x.iter()).zip(&state.x) {
+        *v = (xn - x0) / h * decay;
+    }
+    let t = state.t;
+    StepEnd {
+        kinematics: Kinematic::Schedule { t, dt: h },
+        x,
+        v: v_new,
+        bodies: None,
+        known_finite: false,
+        inverted: inv.inverted,
+        min_det_f: inv.min_det_f,
+        t_end: t + h,
+        count_step,
+    }
+    .commit(model, state, || Ok(()))?;
+    Ok(inv)
 }
 
 /// Smallest `det F` and inverted triangles of `els` at `x` (exact, so the same for any split).
@@ -653,24 +688,19 @@ impl Stepper for VbdStepper {
                     stats.chebyshev_restarts += usize::from(restarted);
                 }
             }
-            inv = inversion(&self.els, &self.x);
+            // The adaptive guess of the next substep reads this substep's starting velocity.
             let prev_v = self.v_prev.get_or_insert_with(|| vec![Vec2::zeros(); n]);
             prev_v.copy_from_slice(&state.v);
-            for ((v, xn), x) in self.v_new.iter_mut().zip(&self.x).zip(&state.x) {
-                *v = (xn - x) / h * self.decay;
-            }
-            StepEnd {
-                kinematics: Kinematic::Schedule { t, dt: h },
-                x: &mut self.x,
-                v: &mut self.v_new,
-                bodies: None,
-                known_finite: false,
-                inverted: inv.inverted,
-                min_det_f: inv.min_det_f,
-                t_end: t + h,
-                count_step: sub + 1 == self.params.substeps,
-            }
-            .commit(model, state, || Ok(()))?;
+            inv = commit_positions(
+                model,
+                state,
+                &self.els,
+                &mut self.x,
+                &mut self.v_new,
+                h,
+                self.decay,
+                sub + 1 == self.params.substeps,
+            )?;
         }
         self.stats = stats;
         Ok(StepReport {
