@@ -129,14 +129,15 @@ impl Framework {
                     steps_per_frame: 1,
                 })
                 .collect(),
+            // The named setting: n sweeps spent as n substeps of one.
             Framework::XpbdSmallSteps => sweeps
                 .iter()
                 .map(|&n| Setting {
                     label: format!("{n} substeps x 1"),
                     values: vec![
-                        ("substeps".into(), int(n)),
-                        ("iterations".into(), int(1)),
-                        ("xpbd_schedule".into(), "iterations".into()),
+                        ("substeps".into(), int(1)),
+                        ("iterations".into(), int(n)),
+                        ("xpbd_schedule".into(), "small-steps".into()),
                     ],
                     steps_per_frame: 1,
                 })
@@ -386,8 +387,8 @@ pub fn errors(
     e
 }
 
-/// `scene` with `energy`, `solver` and `values`, advancing `frame_dt / per_frame` per step for
-/// `frames x per_frame` steps; validated.
+/// `scene` with `energy`, `solver` and `values`, `steps` steps of `dt`; validated (the typed
+/// edit of a comparison's rows).
 fn variant(
     base: &LoadedScene,
     energy: EnergyKind,
@@ -396,20 +397,12 @@ fn variant(
     dt: f64,
     steps: u64,
 ) -> Result<LoadedScene, SceneError> {
-    let mut scene = base.clone();
-    scene.scene.energy = energy;
-    scene.scene.solver.kind = solver;
-    scene.scene.solver.dt = dt;
-    scene.scene.solver.steps = steps;
-    for (key, value) in values {
-        scene
-            .scene
-            .solver
-            .set(key, value.clone())
-            .map_err(|e| SceneError::Scene(format!("{}: {e}", scene.origin)))?;
-    }
-    scene.validate()?;
-    Ok(scene)
+    let mut settings = vec![
+        ("dt".to_owned(), toml::Value::Float(dt)),
+        ("steps".to_owned(), toml::Value::Integer(steps as i64)),
+    ];
+    settings.extend_from_slice(values);
+    crate::compare::variant_scene(base, energy, solver, &settings)
 }
 
 /// Why `framework` cannot run `scene` with `energy`, if it cannot.

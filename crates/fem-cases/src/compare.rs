@@ -260,7 +260,7 @@ pub fn compare(base: &LoadedScene, spec: &CompareSpec) -> Result<Comparison, Sce
 }
 
 /// `base` with the energy, the solver and the parameter settings of one row, validated.
-fn variant_scene(
+pub(crate) fn variant_scene(
     base: &LoadedScene,
     energy: EnergyKind,
     solver: SolverKind,
@@ -281,7 +281,7 @@ fn variant_scene(
 }
 
 /// Parameter settings of one row: `(key, value)` pairs.
-type Settings = Vec<(String, toml::Value)>;
+pub(crate) type Settings = Vec<(String, toml::Value)>;
 
 /// The rows of one solver: `(label, settings)` for each combination of the axes whose key the
 /// solver has (one row with no settings when it has none).

@@ -264,12 +264,18 @@ fn take_lock(lock: &Path, target: &Path) -> Result<(), SceneError> {
 impl Drop for OutDir {
     fn drop(&mut self) {
         if !self.done {
-            let mut active = ACTIVE.lock().unwrap_or_else(|p| p.into_inner());
-            let _ = std::fs::remove_dir_all(&self.staging);
-            let _ = std::fs::remove_file(&self.lock);
-            active.retain(|(s, _, _)| s != &self.staging);
+            abandon(&self.staging, &self.lock);
         }
     }
+}
+
+/// Remove an uncommitted staging directory and its lock, and forget them (a drop before the
+/// commit: an error, a blow-up the caller does not keep).
+fn abandon(staging: &Path, lock: &Path) {
+    let mut active = ACTIVE.lock().unwrap_or_else(|p| p.into_inner());
+    let _ = std::fs::remove_dir_all(staging);
+    let _ = std::fs::remove_file(lock);
+    active.retain(|(s, _, _)| s != staging);
 }
 
 /// Remove a staging directory: renamed first, so that files created in it by path from now on
@@ -442,10 +448,7 @@ impl FilesInto {
 impl Drop for FilesInto {
     fn drop(&mut self) {
         if !self.done {
-            let mut active = ACTIVE.lock().unwrap_or_else(|p| p.into_inner());
-            let _ = std::fs::remove_dir_all(&self.staging);
-            let _ = std::fs::remove_file(&self.lock);
-            active.retain(|(s, _, _)| s != &self.staging);
+            abandon(&self.staging, &self.lock);
         }
     }
 }

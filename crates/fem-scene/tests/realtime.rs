@@ -49,36 +49,34 @@ fn tip_curves_approach_implicit_euler_as_iterations_grow() {
         ("quasi-newton", "stvk", [2, 10, 50]),
     ];
     let case = "case-a";
-    {
-        for (solver, energy, counts) in solvers {
-            let energy_key = format!("energy={energy}");
-            let reference = tip(case, &["solver.kind=implicit", &energy_key]);
-            let mut d = Vec::new();
-            for n in counts {
-                let kind = format!("solver.kind={solver}");
-                let iterations = format!("solver.iterations={n}");
-                d.push(distance(
-                    &tip(case, &[&kind, &energy_key, &iterations]),
-                    &reference,
-                ));
-            }
-            eprintln!(
-                "{case}, {solver} ({energy}): distance to implicit Euler after {} / {} / {} iterations: {:.2e} / {:.2e} / {:.2e}",
-                counts[0], counts[1], counts[2], d[0], d[1], d[2]
-            );
-            assert!(d[1] < d[0] && d[2] < d[1], "{case} {solver}: {d:?}");
-            assert!(d[2] < 1e-8, "{case} {solver}: {d:?}");
-            let same = |c: &str| {
-                tip(
-                    c,
-                    &[
-                        &format!("solver.kind={solver}"),
-                        &energy_key,
-                        &format!("solver.iterations={}", counts[0]),
-                    ],
-                )
-            };
-            assert_eq!(same("case-a"), same("case-c"), "{solver}");
+    for (solver, energy, counts) in solvers {
+        let energy_key = format!("energy={energy}");
+        let reference = tip(case, &["solver.kind=implicit", &energy_key]);
+        let mut d = Vec::new();
+        for n in counts {
+            let kind = format!("solver.kind={solver}");
+            let iterations = format!("solver.iterations={n}");
+            d.push(distance(
+                &tip(case, &[&kind, &energy_key, &iterations]),
+                &reference,
+            ));
         }
+        eprintln!(
+            "{case}, {solver} ({energy}): distance to implicit Euler after {} / {} / {} iterations: {:.2e} / {:.2e} / {:.2e}",
+            counts[0], counts[1], counts[2], d[0], d[1], d[2]
+        );
+        assert!(d[1] < d[0] && d[2] < d[1], "{case} {solver}: {d:?}");
+        assert!(d[2] < 1e-8, "{case} {solver}: {d:?}");
+        let same = |c: &str| {
+            tip(
+                c,
+                &[
+                    &format!("solver.kind={solver}"),
+                    &energy_key,
+                    &format!("solver.iterations={}", counts[0]),
+                ],
+            )
+        };
+        assert_eq!(same("case-a"), same("case-c"), "{solver}");
     }
 }

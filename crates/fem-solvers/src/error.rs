@@ -213,3 +213,16 @@ pub(crate) fn check_finite_vec(field: &str, v: fem_core::math::Vec2) -> Result<(
         ))
     }
 }
+
+/// A Chebyshev spectral radius estimate `rho`, in `[0, 1)` (0 turns the acceleration off).
+pub(crate) fn check_rho(field: &str, rho: Real) -> Result<(), SolverError> {
+    if (0.0..1.0).contains(&rho) {
+        Ok(())
+    } else {
+        Err(SolverError::invalid(
+            field,
+            rho,
+            "must be in [0, 1) (0 turns the acceleration off)",
+        ))
+    }
+}

@@ -180,7 +180,7 @@ pub(crate) struct Potential<'a, E: Energy> {
 
 impl<E: Energy> Potential<'_, E> {
     /// The potential and the sum of its terms' magnitudes (the scale of its round-off).
-    fn value(&self, x: &[Vec2], scratch: &mut Scratch) -> (Real, Real) {
+    pub(crate) fn value(&self, x: &[Vec2], scratch: &mut Scratch) -> (Real, Real) {
         let elastic = elastic_energy(self.mesh, self.energy, x, scratch);
         let mut rest = 0.0;
         let mut magnitude = elastic.abs();

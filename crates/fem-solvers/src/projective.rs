@@ -40,7 +40,7 @@ use fem_core::math::{Mat2, Real, Vec2};
 use fem_core::polar::Polar2;
 use rayon::prelude::*;
 
-use crate::error::{SolverError, check_count, check_non_negative, check_positive};
+use crate::error::{SolverError, check_count, check_non_negative, check_positive, check_rho};
 use crate::implicit::external_load;
 use crate::kernel::{ELEMENT_CHUNK, PackedElement, VERTEX_CHUNK, deformation_gradient, pack};
 use crate::limits;
@@ -99,19 +99,6 @@ impl PdParams {
         )?;
         check_non_negative(&field("damping"), self.damping)?;
         check_rho(&field("chebyshev_rho"), self.chebyshev_rho)
-    }
-}
-
-/// `rho` in `[0, 1)`.
-pub(crate) fn check_rho(field: &str, rho: Real) -> Result<(), SolverError> {
-    if (0.0..1.0).contains(&rho) {
-        Ok(())
-    } else {
-        Err(SolverError::invalid(
-            field,
-            rho,
-            "must be in [0, 1) (0 turns the acceleration off)",
-        ))
     }
 }
 

@@ -30,7 +30,7 @@
 //! Registered as `quasi-newton` ([`Solver`]); scene keys `dt`, `iterations`, `history`,
 //! `damping`, `tolerance`, `max_halvings`.
 
-use fem_core::assembly::{Scratch, elastic_energy, populate_forces};
+use fem_core::assembly::{Scratch, populate_forces};
 use fem_core::energy::Energy;
 use fem_core::math::{Real, Vec2};
 
@@ -39,6 +39,7 @@ use crate::implicit::external_load;
 use crate::kernel::{PackedElement, pack};
 use crate::limits;
 use crate::model::Model;
+use crate::newton::Potential;
 use crate::pd_system::{PdSystem, rest_lame};
 use crate::registry::{Capabilities, Clock, Solver};
 use crate::report::StepReport;
@@ -267,14 +268,15 @@ impl QuasiNewtonStepper {
             Which::Trial => &self.trial,
         };
         let mesh = model.mesh();
-        let mut e = elastic_energy(mesh, model.energy(), x, &mut self.scratch);
-        let mut magnitude = e.abs();
-        for (i, (p, x0)) in x.iter().zip(mesh.vertices()).enumerate() {
-            let inertia = 0.5 * w * model.masses()[i] * (p - self.target[i]).norm_squared();
-            let work = self.load[i].dot(&(p - x0));
-            e += inertia - work;
-            magnitude += inertia + work.abs();
-        }
+        let potential = Potential {
+            mesh,
+            energy: model.energy(),
+            masses: model.masses(),
+            weight: w,
+            target: &self.target,
+            load: &self.load,
+        };
+        let (e, magnitude) = potential.value(x, &mut self.scratch);
         if gradient.is_some() && e.is_finite() {
             populate_forces(mesh, model.energy(), x, &mut self.forces, &mut self.scratch);
             let n = self.free.len();

@@ -68,7 +68,7 @@ use rayon::prelude::*;
 
 use crate::colour::VertexColouring;
 use crate::commit::{Kinematic, StepEnd};
-use crate::error::{SolverError, check_count, check_non_negative, check_positive};
+use crate::error::{SolverError, check_count, check_non_negative, check_positive, check_rho};
 use crate::implicit::external_load;
 use crate::kernel::{ELEMENT_CHUNK, Inversion, PackedElement, deformation_gradient, pack};
 use crate::limits;
@@ -159,7 +159,7 @@ impl VbdParams {
             limits::MAX_ITERATIONS,
         )?;
         check_non_negative(&field("damping"), self.damping)?;
-        crate::projective::check_rho(&field("chebyshev_rho"), self.chebyshev_rho)
+        check_rho(&field("chebyshev_rho"), self.chebyshev_rho)
     }
 }
 
