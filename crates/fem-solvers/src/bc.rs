@@ -138,20 +138,32 @@ pub(crate) fn window_overlap(t: Real, dt: Real, start: Real, end: Real) -> Real 
     (b - a).max(0.0)
 }
 
+/// How one kinematic vertex moves.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) enum Motion {
+    /// Held still.
+    Pinned,
+    /// On the schedule of the prescribed motion with this index.
+    Scheduled(u32),
+    /// Held by a pinning grab: carried to this goal position by the end of the step, along a
+    /// straight line at constant speed (see [`crate::grab`]).
+    Held(Vec2),
+}
+
 /// The kinematic vertices of a model, resolved to indices.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Kinematics {
     /// Sorted kinematic vertex indices.
     pub(crate) vertices: Vec<u32>,
-    /// For each entry of `vertices`, the motion index (`None` = pinned).
-    pub(crate) motion: Vec<Option<u32>>,
+    /// For each entry of `vertices`, how it moves.
+    pub(crate) motion: Vec<Motion>,
     /// The motions.
     pub(crate) motions: Vec<PrescribedMotion>,
 }
 
 impl Kinematics {
     /// Mark `list` with `motion` (later assignments win).
-    pub(crate) fn assign(&mut self, list: &[usize], motion: Option<u32>) {
+    pub(crate) fn assign(&mut self, list: &[usize], motion: Motion) {
         for &v in list {
             let v = v as u32;
             match self.vertices.binary_search(&v) {
@@ -169,28 +181,45 @@ impl Kinematics {
         self.vertices.iter().map(|&v| v as usize)
     }
 
-    /// The velocity of kinematic entry `k` over the step `[t, t + dt]`.
+    /// The velocity of kinematic entry `k` (at `x_old`) over the (sub)step `[t, t + dt]` of a
+    /// step that ends at `until`: a schedule's mean velocity, or for a held vertex the speed
+    /// that reaches its goal at `until` along a straight line.
     #[inline]
-    pub(crate) fn velocity(&self, k: usize, t: Real, dt: Real) -> Vec2 {
+    pub(crate) fn velocity(&self, k: usize, x_old: Vec2, t: Real, dt: Real, until: Real) -> Vec2 {
         match self.motion[k] {
-            None => Vec2::zeros(),
-            Some(m) => self.motions[m as usize].mean_velocity(t, dt),
+            Motion::Pinned => Vec2::zeros(),
+            Motion::Scheduled(m) => self.motions[m as usize].mean_velocity(t, dt),
+            Motion::Held(goal) => {
+                let left = until - t;
+                // The last (sub)step lands on the goal exactly, whatever the rounding of t.
+                if left <= dt * (1.0 + 1e-9) {
+                    (goal - x_old) / dt
+                } else {
+                    (goal - x_old) / left
+                }
+            }
         }
     }
 
-    /// Move the kinematic vertices over `[t, t + dt]`: `x_new = x_old + dt * v`, `v_new = v`.
+    /// Move the kinematic vertices over the (sub)step `[t, t + dt]` of a step that ends at
+    /// `until`: `x_new = x_old + dt * v`, `v_new = v` (a held vertex lands on its goal exactly
+    /// when `t + dt` reaches `until`).
     pub(crate) fn apply(
         &self,
         t: Real,
         dt: Real,
+        until: Real,
         x_old: &[Vec2],
         x_new: &mut [Vec2],
         v_new: &mut [Vec2],
     ) {
         for (k, &v) in self.vertices.iter().enumerate() {
             let v = v as usize;
-            let vel = self.velocity(k, t, dt);
-            x_new[v] = x_old[v] + vel * dt;
+            let vel = self.velocity(k, x_old[v], t, dt, until);
+            x_new[v] = match self.motion[k] {
+                Motion::Held(goal) if until - t <= dt * (1.0 + 1e-9) => goal,
+                _ => x_old[v] + vel * dt,
+            };
             v_new[v] = vel;
         }
     }
@@ -211,10 +240,11 @@ mod tests {
     #[test]
     fn later_assignment_wins_and_list_stays_sorted() {
         let mut k = Kinematics::default();
-        k.assign(&[5, 1, 3], None);
-        k.assign(&[3, 0], Some(0));
+        use Motion::{Pinned, Scheduled};
+        k.assign(&[5, 1, 3], Pinned);
+        k.assign(&[3, 0], Scheduled(0));
         assert_eq!(k.vertices, vec![0, 1, 3, 5]);
-        assert_eq!(k.motion, vec![Some(0), None, Some(0), None]);
+        assert_eq!(k.motion, vec![Scheduled(0), Pinned, Scheduled(0), Pinned]);
     }
 
     #[test]

@@ -27,6 +27,8 @@ pub(crate) enum Kinematic {
         t: Real,
         /// Length of the (sub)step, s.
         dt: Real,
+        /// End of the whole step, s (where grabbed vertices reach their goals).
+        until: Real,
     },
     /// The stepper has placed them itself (the static solver, by load factor).
     Placed,
@@ -65,8 +67,10 @@ impl StepEnd<'_> {
         state: &mut State,
         accept: impl FnOnce() -> Result<(), SolverError>,
     ) -> Result<(), SolverError> {
-        if let Kinematic::Schedule { t, dt } = self.kinematics {
-            model.kinematics().apply(t, dt, &state.x, self.x, self.v);
+        if let Kinematic::Schedule { t, dt, until } = self.kinematics {
+            model
+                .kinematics()
+                .apply(t, dt, until, &state.x, self.x, self.v);
         }
         if !self.known_finite {
             check_finite(

@@ -171,6 +171,10 @@ impl Stepper for ExplicitStepper {
         for &(v, fe) in model.external_forces() {
             self.f[v as usize] += fe;
         }
+        for s in model.springs() {
+            let v = s.vertex as usize;
+            self.f[v] += (s.goal - state.x[v]) * s.stiffness;
+        }
         let contacts = if model.has_contact() {
             accumulate_penalty_forces(
                 model.ground(),
@@ -227,7 +231,11 @@ impl Stepper for ExplicitStepper {
             }
         }
         StepEnd {
-            kinematics: Kinematic::Schedule { t, dt },
+            kinematics: Kinematic::Schedule {
+                t,
+                dt,
+                until: t + dt,
+            },
             x: &mut self.x_new,
             v: &mut self.v_new,
             bodies: Some(&mut self.bodies_new),

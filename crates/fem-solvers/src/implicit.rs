@@ -88,6 +88,8 @@ pub struct ImplicitStepper {
     x_new: Vec<Vec2>,
     v_new: Vec<Vec2>,
     last: NewtonReport,
+    /// The model layout the free degrees of freedom were analysed for.
+    layout: u64,
 }
 
 impl ImplicitStepper {
@@ -106,6 +108,7 @@ impl ImplicitStepper {
         let solver = NewtonSolver::new(model.mesh(), &kinematic, "implicit")?;
         let n = model.mesh().n_vertices();
         Ok(ImplicitStepper {
+            layout: model.layout(),
             decay: (-params.damping * params.dt).exp(),
             params,
             n_triangles: model.mesh().n_triangles(),
@@ -155,6 +158,9 @@ impl Stepper for ImplicitStepper {
         state: &mut State,
     ) -> Result<StepReport, SolverError> {
         check_step_inputs(model, self.n_triangles, state)?;
+        if model.layout() != self.layout {
+            *self = ImplicitStepper::new(model, self.params)?;
+        }
         let (h, t) = (self.params.dt, state.t);
         external_load(model, &mut self.load);
         for ((xh, x), v) in self.target.iter_mut().zip(&state.x).zip(&state.v) {
@@ -164,7 +170,7 @@ impl Stepper for ImplicitStepper {
         // unknowns (where they stay fixed).
         model
             .kinematics()
-            .apply(t, h, &state.x, &mut self.target, &mut self.v_new);
+            .apply(t, h, t + h, &state.x, &mut self.target, &mut self.v_new);
         self.x_new.copy_from_slice(&self.target);
         let potential = Potential {
             mesh: model.mesh(),
@@ -173,6 +179,7 @@ impl Stepper for ImplicitStepper {
             weight: 1.0 / (h * h),
             target: &self.target,
             load: &self.load,
+            springs: model.springs(),
         };
         // When the prediction inverts an element the energy forbids, start from the current
         // positions (valid), kinematic vertices moved.
@@ -180,7 +187,7 @@ impl Stepper for ImplicitStepper {
         let current = |x: &mut [Vec2]| {
             x.copy_from_slice(&state.x);
             for (k, v) in kinematics.vertices().enumerate() {
-                x[v] = state.x[v] + h * kinematics.velocity(k, t, h);
+                x[v] = state.x[v] + h * kinematics.velocity(k, state.x[v], t, h, t + h);
             }
         };
         let report = self.solver.minimise(
@@ -195,7 +202,11 @@ impl Stepper for ImplicitStepper {
         // Kinematic velocities are their schedule's (undamped): the commit moves them.
         let step = state.step;
         StepEnd {
-            kinematics: Kinematic::Schedule { t, dt: h },
+            kinematics: Kinematic::Schedule {
+                t,
+                dt: h,
+                until: t + h,
+            },
             x: &mut self.x_new,
             v: &mut self.v_new,
             bodies: None,

@@ -12,7 +12,8 @@
 //!
 //! The pieces, kept apart:
 //! - a [`Model`] (mesh, energy, lumped masses, boundary conditions, loads, obstacles): fixed
-//!   during a run;
+//!   during a run except for the drag attachment ([`Grab`], a pin or a compliant spring moved
+//!   between steps and honoured by every stepper; see [`grab`]);
 //! - a [`State`] (positions, velocities, rigid-body poses, clock): what steps change;
 //! - steppers that advance a state by one step of their clock ([`Clock`]: a time step, or for
 //!   the static solver a load increment) and return a [`StepReport`] (min det F, inverted
@@ -105,6 +106,7 @@ pub mod contact;
 pub mod diagnostics;
 mod error;
 pub mod explicit;
+pub mod grab;
 pub mod implicit;
 mod kernel;
 pub mod limits;
@@ -131,6 +133,7 @@ pub use bc::{PrescribedMotion, Region};
 pub use contact::{BodyState, ContactParams, Ground, ObstacleMotion};
 pub use error::SolverError;
 pub use explicit::{ExplicitParams, ExplicitScheme, ExplicitStepper};
+pub use grab::{Grab, GrabModel};
 pub use implicit::{ImplicitParams, ImplicitStepper};
 pub use model::{Model, TimeStepCheck};
 pub use newton::{NewtonParams, NewtonReport};

@@ -3,7 +3,13 @@
 //!
 //! A model is built once and then passed by shared reference to a stepper's `step`, together
 //! with a mutable [`State`](crate::State). Every setter validates its input and returns a
-//! one-line [`SolverError`] naming the field and the value.
+//! one-line [`SolverError`] naming the field and the value. Between steps a model may change:
+//! a drag attachment ([`Model::grab`], [`Model::move_grab`], [`Model::release`]) or a new
+//! boundary condition or obstacle. Each structural change gives the model a new
+//! [`Model::layout`]; a stepper that precomputed something from the old one (a factorisation,
+//! a colouring, the free degrees of freedom) redoes it at its next step.
+
+use std::sync::atomic::{AtomicU64, Ordering};
 
 use fem_core::energy::Energy;
 use fem_core::math::{Mat2, Mat6, Real, Vec2};
@@ -11,10 +17,17 @@ use fem_core::mesh::Mesh;
 use fem_core::simd::Isa;
 use nalgebra::SymmetricEigen;
 
-use crate::bc::{Kinematics, PrescribedMotion, Region};
+use crate::bc::{Kinematics, Motion, PrescribedMotion, Region};
 use crate::contact::{ContactParams, Ground, Obstacle, ObstacleMotion};
 use crate::error::{SolverError, check_finite_vec, check_positive};
-use crate::kernel::{ElementBlock, PackedElement, pack, pack_blocks};
+use crate::grab::{ActiveGrab, Grab, GrabModel, Spring};
+use crate::kernel::{ElementBlock, PackedElement, deformation_gradient, pack, pack_blocks};
+
+/// A new layout identifier, unique in the process.
+fn fresh_layout() -> u64 {
+    static NEXT: AtomicU64 = AtomicU64::new(1);
+    NEXT.fetch_add(1, Ordering::Relaxed)
+}
 
 /// Standard gravity used by [`Model::with_standard_gravity`], m/s^2 (the paper's cases use 9.8).
 pub const STANDARD_GRAVITY: Real = 9.8;
@@ -29,7 +42,12 @@ pub struct Model<E: Energy> {
     energy: E,
     masses: Vec<Real>,
     inv_masses: Vec<Real>,
+    /// Pinned and scheduled vertices (the boundary conditions).
+    base: Kinematics,
+    /// `base` plus the vertices a pinning grab holds.
     kinematics: Kinematics,
+    grab: Option<ActiveGrab>,
+    layout: u64,
     gravity: Vec2,
     external_forces: Vec<(u32, Vec2)>,
     tractions: usize,
@@ -82,7 +100,10 @@ impl<E: Energy> Model<E> {
             energy,
             masses,
             inv_masses,
+            base: Kinematics::default(),
             kinematics: Kinematics::default(),
+            grab: None,
+            layout: fresh_layout(),
             gravity: Vec2::zeros(),
             external_forces: Vec::new(),
             tractions: 0,
@@ -129,8 +150,8 @@ impl<E: Energy> Model<E> {
     /// Pin the vertices of `region` (zero velocity for the whole run).
     pub fn pin(&mut self, region: &Region) -> Result<&mut Self, SolverError> {
         let list = region.select(self.mesh.vertices(), "pinned")?;
-        self.kinematics.assign(&list, None);
-        self.refresh_inverse_masses();
+        self.base.assign(&list, Motion::Pinned);
+        self.refresh_kinematics();
         Ok(self)
     }
 
@@ -139,13 +160,13 @@ impl<E: Energy> Model<E> {
         &mut self,
         motion: PrescribedMotion,
     ) -> Result<&mut Self, SolverError> {
-        let field = format!("prescribed_motion[{}]", self.kinematics.motions.len());
+        let field = format!("prescribed_motion[{}]", self.base.motions.len());
         motion.validate(&field)?;
         let list = motion.region.select(self.mesh.vertices(), &field)?;
-        let id = self.kinematics.motions.len() as u32;
-        self.kinematics.motions.push(motion);
-        self.kinematics.assign(&list, Some(id));
-        self.refresh_inverse_masses();
+        let id = self.base.motions.len() as u32;
+        self.base.motions.push(motion);
+        self.base.assign(&list, Motion::Scheduled(id));
+        self.refresh_kinematics();
         Ok(self)
     }
 
@@ -234,6 +255,7 @@ impl<E: Energy> Model<E> {
             }
         }
         self.ground = ground;
+        self.layout = fresh_layout();
         Ok(self)
     }
 
@@ -282,6 +304,7 @@ impl<E: Energy> Model<E> {
             }
         }
         self.obstacles.push(obstacle);
+        self.layout = fresh_layout();
         Ok(index)
     }
 
@@ -289,7 +312,142 @@ impl<E: Energy> Model<E> {
     pub fn set_contact_params(&mut self, params: ContactParams) -> Result<&mut Self, SolverError> {
         params.validate()?;
         self.contact = params;
+        self.layout = fresh_layout();
         Ok(self)
+    }
+
+    /// Start a drag attachment (replacing any active one), resolved at positions `x` (the
+    /// state's): see [`crate::grab`]. Vertices that are pinned or moved on a schedule leave
+    /// the anchor; an anchor with no free vertex left is an error. Changes the layout.
+    pub fn grab(&mut self, grab: &Grab, x: &[Vec2]) -> Result<&mut Self, SolverError> {
+        if x.len() != self.mesh.n_vertices() {
+            return Err(SolverError::invalid(
+                "grab.positions",
+                format!("{} positions", x.len()),
+                format!(
+                    "must hold one position per mesh vertex ({})",
+                    self.mesh.n_vertices()
+                ),
+            ));
+        }
+        let mut kinematic = vec![false; x.len()];
+        for v in self.base.vertices() {
+            kinematic[v] = true;
+        }
+        self.grab = Some(ActiveGrab::new(grab, x, &kinematic)?);
+        self.refresh_kinematics();
+        Ok(self)
+    }
+
+    /// Move the active grab's target (m); the layout does not change. Fails when no grab
+    /// is active or the target is not finite.
+    pub fn move_grab(&mut self, target: Vec2) -> Result<&mut Self, SolverError> {
+        check_finite_vec("grab.target", target)?;
+        let Some(grab) = self.grab.as_mut() else {
+            return Err(SolverError::invalid(
+                "grab",
+                "none",
+                "no grab is active (start one with Model::grab)",
+            ));
+        };
+        grab.move_to(target);
+        if grab.model == GrabModel::Pin {
+            for a in &grab.anchors {
+                if let Ok(k) = self.kinematics.vertices.binary_search(&a.vertex) {
+                    self.kinematics.motion[k] = Motion::Held(grab.goal(a));
+                }
+            }
+        }
+        Ok(self)
+    }
+
+    /// End the active grab, if any (the held vertices are free again). Changes the layout
+    /// when a grab was active.
+    pub fn release(&mut self) -> &mut Self {
+        if self.grab.take().is_some() {
+            self.refresh_kinematics();
+        }
+        self
+    }
+
+    /// The active grab: its anchor (vertices and normalised weights), target and model.
+    pub fn active_grab(&self) -> Option<Grab> {
+        self.grab.as_ref().map(|g| Grab {
+            anchor: g
+                .anchors
+                .iter()
+                .map(|a| (a.vertex as usize, a.weight))
+                .collect(),
+            target: g.target,
+            model: g.model,
+        })
+    }
+
+    /// The active grab's anchor point `sum w_i x_i` at positions `x`, m.
+    pub fn grab_point(&self, x: &[Vec2]) -> Option<Vec2> {
+        self.grab.as_ref().map(|g| g.point(x))
+    }
+
+    /// The force the hand exerts on the body at positions `x` (N per unit thickness): for a
+    /// spring, `k (target - sum w_i x_i)`; for a pin, the quasi-static reaction, minus the sum
+    /// of the elastic forces, weights and nodal loads on the held vertices (their inertia left
+    /// out). `None` without a grab.
+    pub fn grab_force(&self, x: &[Vec2]) -> Option<Vec2> {
+        let grab = self.grab.as_ref()?;
+        Some(match grab.model {
+            GrabModel::Spring { .. } => grab.springs.iter().fold(Vec2::zeros(), |f, s| {
+                f + (s.goal - x[s.vertex as usize]) * s.stiffness
+            }),
+            GrabModel::Pin => {
+                let adj = self.mesh.adjacency();
+                let mut f = Vec2::zeros();
+                for a in &grab.anchors {
+                    let v = a.vertex as usize;
+                    for &(t, corner) in adj.of(v) {
+                        let el = &self.elements[t as usize];
+                        let p = self.energy.pk1(&deformation_gradient(el, x));
+                        f += (p * crate::vbd::corner_gradient(el, corner)) * el.area;
+                    }
+                    f -= self.gravity * self.masses[v];
+                }
+                for &(v, load) in &self.external_forces {
+                    if grab.anchors.iter().any(|a| a.vertex == v) {
+                        f -= load;
+                    }
+                }
+                f
+            }
+        })
+    }
+
+    /// The springs of an active spring grab (sorted by vertex; empty otherwise).
+    pub(crate) fn springs(&self) -> &[Spring] {
+        self.grab.as_ref().map_or(&[], |g| &g.springs)
+    }
+
+    /// An identifier of the model's structure (kinematic vertices, grab, contact geometry),
+    /// unique in the process: it changes whenever [`Model::pin`],
+    /// [`Model::add_prescribed_motion`], [`Model::set_ground`], [`Model::add_obstacle`],
+    /// [`Model::set_contact_params`], [`Model::grab`] or [`Model::release`] is called (a clone
+    /// shares it). Steppers compare it with the one they were built for and rebuild what
+    /// depends on it.
+    pub fn layout(&self) -> u64 {
+        self.layout
+    }
+
+    /// Effective kinematics from the boundary conditions and the grab; new layout.
+    fn refresh_kinematics(&mut self) {
+        self.kinematics = self.base.clone();
+        if let Some(g) = &self.grab {
+            if g.model == GrabModel::Pin {
+                for a in &g.anchors {
+                    self.kinematics
+                        .assign(&[a.vertex as usize], Motion::Held(g.goal(a)));
+                }
+            }
+        }
+        self.refresh_inverse_masses();
+        self.layout = fresh_layout();
     }
 
     fn refresh_inverse_masses(&mut self) {

@@ -42,6 +42,7 @@ use fem_core::math::{Real, Vec2};
 use fem_core::mesh::Mesh;
 
 use crate::error::{SolverError, check_at_most, check_count};
+use crate::grab::{Spring, spring_energy, spring_of};
 use crate::limits;
 use crate::stopwatch::Stopwatch;
 
@@ -176,6 +177,8 @@ pub(crate) struct Potential<'a, E: Energy> {
     pub target: &'a [Vec2],
     /// External load per vertex, N (gravity included).
     pub load: &'a [Vec2],
+    /// The springs of a spring grab (`k/2 |x - goal|^2` each).
+    pub springs: &'a [Spring],
 }
 
 impl<E: Energy> Potential<'_, E> {
@@ -197,7 +200,8 @@ impl<E: Energy> Potential<'_, E> {
             rest -= work;
             magnitude += work.abs();
         }
-        (elastic + rest, magnitude)
+        let springs = spring_energy(self.springs, x);
+        (elastic + rest + springs, magnitude + springs)
     }
 }
 
@@ -324,6 +328,9 @@ impl NewtonSolver {
             if p.weight > 0.0 {
                 g += p.weight * p.masses[v] * (xv - p.target[v]);
             }
+            if let Some(s) = spring_of(p.springs, v) {
+                g += (xv - s.goal) * s.stiffness;
+            }
             for d in 0..2 {
                 let j = self.free[2 * v + d];
                 if j != u32::MAX {
@@ -366,6 +373,14 @@ impl NewtonSolver {
                     if j != u32::MAX {
                         self.values[self.diag[j as usize]] += p.weight * p.masses[v];
                     }
+                }
+            }
+        }
+        for s in p.springs {
+            for d in 0..2 {
+                let j = self.free[2 * s.vertex as usize + d];
+                if j != u32::MAX {
+                    self.values[self.diag[j as usize]] += s.stiffness;
                 }
             }
         }

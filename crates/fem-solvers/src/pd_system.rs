@@ -10,9 +10,13 @@
 //! (`dP/dF` at `F = I` is linear elasticity's for every energy of `fem-core`), so the same
 //! matrix serves every energy.
 //!
+//! The springs of a spring grab (`k/2 |x - goal|^2`, see [`crate::grab`]) are quadratic too:
+//! each adds `k` to its vertex's diagonal.
+//!
 //! `A` does not change during a run: it is assembled and factorised (faer's sparse Cholesky,
-//! sequential, so bit-identical for any thread count) once, when the stepper is built; the
-//! count of factorisations is kept so tests can check it.
+//! sequential, so bit-identical for any thread count) once, when the stepper is built, and
+//! again only when the model's layout changes (a grab starts or ends); the count of
+//! factorisations is kept so tests can check it.
 
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::cholesky::llt::factor::LltRegularization;
@@ -27,6 +31,7 @@ use fem_core::math::{Mat2, Real, Vec2, vec_index};
 use fem_core::mesh::Mesh;
 
 use crate::error::SolverError;
+use crate::grab::Spring;
 
 /// The Lamé parameters `(mu, lambda)` of `energy`'s tangent at rest.
 pub(crate) fn rest_lame<E: Energy>(energy: &E) -> (Real, Real) {
@@ -60,12 +65,14 @@ impl std::fmt::Debug for PdSystem {
 
 impl PdSystem {
     /// Assemble and factorise `A` for `mesh` with element weights `weights`, lumped `masses`,
-    /// inertia weight `w = 1 / h^2` and the vertices `kinematic` held. Errors name `prefix`.
+    /// inertia weight `w = 1 / h^2`, the grab's `springs` and the vertices `kinematic` held.
+    /// Errors name `prefix`.
     pub(crate) fn new(
         mesh: &Mesh,
         masses: &[Real],
         weights: &[Real],
         w: Real,
+        springs: &[Spring],
         kinematic: &[bool],
         prefix: &str,
     ) -> Result<Self, SolverError> {
@@ -91,6 +98,12 @@ impl PdSystem {
         for (v, &m) in masses.iter().enumerate() {
             if free[v] != u32::MAX {
                 lower.push((free[v], free[v], m * w));
+            }
+        }
+        for s in springs {
+            let f = free[s.vertex as usize];
+            if f != u32::MAX {
+                lower.push((f, f, s.stiffness));
             }
         }
         for ((tri, el), &we) in mesh.triangles().iter().zip(mesh.elements()).zip(weights) {
@@ -203,6 +216,11 @@ impl PdSystem {
     /// Numeric factorisations done since construction (one).
     pub(crate) fn factorisations(&self) -> usize {
         self.factorisations
+    }
+
+    /// Count `earlier` factorisations of the systems this one replaces.
+    pub(crate) fn add_earlier(&mut self, earlier: usize) {
+        self.factorisations += earlier;
     }
 
     /// Subtract the couplings to the kinematic vertices at `x` from the right-hand sides

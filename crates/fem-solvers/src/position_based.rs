@@ -74,6 +74,7 @@ use crate::contact::{BodyState, ObstacleMotion, project_contacts};
 use crate::error::{
     SolverError, check_count, check_non_negative, check_positive, check_relaxation,
 };
+use crate::grab::Spring;
 use crate::kernel::{
     ELEMENT_CHUNK, Inversion, PackedElement, VERTEX_CHUNK, deformation_gradient, energy_gradients,
 };
@@ -475,6 +476,8 @@ struct Engine {
     /// per-vertex gather (see [`ColourScatter`]).
     colour_scatter: ColourScatter,
     bodies_pred: Vec<BodyState>,
+    /// The multipliers of the grab's springs (one vector per spring), zeroed every substep.
+    grab_lambda: Vec<Vec2>,
 }
 
 /// For each colour, the corners of its triangles sorted by vertex, so a colour's corrections
@@ -606,6 +609,7 @@ impl Engine {
             elements,
             ranges,
             bodies_pred: Vec::new(),
+            grab_lambda: Vec::new(),
         }
     }
 
@@ -628,9 +632,10 @@ impl Engine {
     ) -> Result<StepReport, SolverError> {
         check_step_inputs(model, self.n_triangles, state)?;
         let h = self.dt / self.substeps as Real;
+        let until = state.t + self.dt;
         let mut report = StepReport::explicit(Real::INFINITY, 0, 0);
         for _ in 0..self.substeps {
-            let r = self.substep(model, state, h)?;
+            let r = self.substep(model, state, h, until)?;
             report = StepReport {
                 iterations: report.iterations + r.iterations,
                 ..r
@@ -645,6 +650,7 @@ impl Engine {
         model: &Model<E>,
         state: &mut State,
         h: Real,
+        until: Real,
     ) -> Result<StepReport, SolverError> {
         let n = state.x.len();
         let w = model.inverse_masses();
@@ -668,7 +674,7 @@ impl Engine {
         }
         model
             .kinematics()
-            .apply(t, h, &state.x, &mut self.x_pred, &mut self.v_new);
+            .apply(t, h, until, &state.x, &mut self.x_pred, &mut self.v_new);
         self.bodies_pred.clone_from(&state.bodies);
         for (obs, body) in model.obstacles().iter().zip(self.bodies_pred.iter_mut()) {
             match obs.motion() {
@@ -687,9 +693,13 @@ impl Engine {
         let psi_threshold = self.rest_threshold * model.p_wave_modulus();
         let mut stats = SweepStats::EMPTY;
         let mut contacts = 0;
+        let springs = model.springs();
+        self.grab_lambda.clear();
+        self.grab_lambda.resize(springs.len(), Vec2::zeros());
         for k in 0..self.iterations {
             if self.reset_lambda_each_sweep && k > 0 {
                 self.lambda.fill(0.0);
+                self.grab_lambda.fill(Vec2::zeros());
             }
             stats = self.sweep(
                 model.energy(),
@@ -698,6 +708,7 @@ impl Engine {
                 rule,
                 psi_threshold,
             );
+            project_springs(springs, w, h, &mut self.x_pred, &mut self.grab_lambda);
             if model.has_contact() {
                 contacts = project_contacts(
                     model.ground(),
@@ -732,7 +743,7 @@ impl Engine {
         }
         // A substep advances the time; the step counter moves once per step (in `step`).
         StepEnd {
-            kinematics: Kinematic::Schedule { t, dt: h },
+            kinematics: Kinematic::Schedule { t, dt: h, until },
             x: &mut self.x_pred,
             v: &mut self.v_new,
             bodies: Some(&mut self.bodies_pred),
@@ -1084,5 +1095,22 @@ impl Solver for XpbdStepper {
 
     fn dt_mut(p: &mut XpbdParams) -> Option<&mut Real> {
         Some(&mut p.dt)
+    }
+}
+
+/// Project the grab's springs (each `k/2 |x - goal|^2`) as compliant vector constraints
+/// `C = x - goal` with compliance `1 / k` (XPBD's update with the multiplier `lambda` kept over
+/// the substep's iterations), for PBD and XPBD alike: a spring has a stiffness of its own, so
+/// PBD's material stiffness does not apply to it.
+fn project_springs(springs: &[Spring], w: &[Real], h: Real, x: &mut [Vec2], lambda: &mut [Vec2]) {
+    for (s, l) in springs.iter().zip(lambda) {
+        let v = s.vertex as usize;
+        if w[v] == 0.0 {
+            continue;
+        }
+        let alpha_tilde = 1.0 / (s.stiffness * h * h);
+        let dl = (-(x[v] - s.goal) - *l * alpha_tilde) / (w[v] + alpha_tilde);
+        x[v] += dl * w[v];
+        *l += dl;
     }
 }

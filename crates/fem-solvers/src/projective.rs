@@ -126,6 +126,8 @@ pub struct PdStepper {
     /// The right-hand sides over the free vertices, column-major (x, then y).
     rhs: Vec<Real>,
     chebyshev: Chebyshev,
+    /// The model layout the matrix was factorised for.
+    layout: u64,
 }
 
 impl PdStepper {
@@ -168,11 +170,13 @@ impl PdStepper {
             model.masses(),
             &weights,
             1.0 / (h * h),
+            model.springs(),
             &kinematic,
             "pd",
         )?;
         let free: Vec<u32> = (0..n as u32).filter(|&v| !kinematic[v as usize]).collect();
         Ok(PdStepper {
+            layout: model.layout(),
             decay: (-params.damping * h).exp(),
             params,
             n_triangles: mesh.n_triangles(),
@@ -198,7 +202,8 @@ impl PdStepper {
     }
 
     /// Numeric factorisations of the global matrix since the stepper was built: one, whatever
-    /// the number of steps.
+    /// the number of steps, plus one for each change of the model's layout (a grab started or
+    /// ended).
     pub fn factorisations(&self) -> usize {
         self.system.factorisations()
     }
@@ -244,6 +249,9 @@ impl PdStepper {
                     *r = s;
                 }
             });
+        for s in model.springs() {
+            self.rhs_v[s.vertex as usize] += s.goal * s.stiffness;
+        }
         let n = self.system.n_free();
         for (k, &v) in self.free.iter().enumerate() {
             let r = self.rhs_v[v as usize];
@@ -278,6 +286,11 @@ impl Stepper for PdStepper {
         state: &mut State,
     ) -> Result<StepReport, SolverError> {
         check_step_inputs(model, self.n_triangles, state)?;
+        if model.layout() != self.layout {
+            let earlier = self.factorisations();
+            *self = PdStepper::new(model, self.params)?;
+            self.system.add_earlier(earlier);
+        }
         let (h, t) = (self.params.dt, state.t);
         let w = 1.0 / (h * h);
         external_load(model, &mut self.load);
@@ -294,7 +307,7 @@ impl Stepper for PdStepper {
         }
         model
             .kinematics()
-            .apply(t, h, &state.x, &mut self.x, &mut self.v_new);
+            .apply(t, h, t + h, &state.x, &mut self.x, &mut self.v_new);
         let rho = self.params.chebyshev_rho;
         if rho > 0.0 {
             self.chebyshev.start(&self.x);
@@ -315,6 +328,7 @@ impl Stepper for PdStepper {
             &mut self.x,
             &mut self.v_new,
             h,
+            t + h,
             self.decay,
             true,
         )?;

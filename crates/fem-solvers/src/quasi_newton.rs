@@ -35,6 +35,7 @@ use fem_core::energy::Energy;
 use fem_core::math::{Real, Vec2};
 
 use crate::error::{SolverError, check_at_most, check_count, check_non_negative, check_positive};
+use crate::grab::spring_of;
 use crate::implicit::external_load;
 use crate::kernel::{PackedElement, pack};
 use crate::limits;
@@ -164,6 +165,8 @@ pub struct QuasiNewtonStepper {
     pairs: usize,
     head: usize,
     last: QuasiNewtonReport,
+    /// The model layout the matrix was factorised for.
+    layout: u64,
 }
 
 fn dot(a: &[Real], b: &[Real]) -> Real {
@@ -203,6 +206,7 @@ impl QuasiNewtonStepper {
             model.masses(),
             &weights,
             1.0 / (h * h),
+            model.springs(),
             &kinematic,
             "quasi-newton",
         )?;
@@ -210,6 +214,7 @@ impl QuasiNewtonStepper {
         let m = 2 * free.len();
         let hist = params.history;
         Ok(QuasiNewtonStepper {
+            layout: model.layout(),
             decay: (-params.damping * h).exp(),
             params,
             n_triangles: mesh.n_triangles(),
@@ -248,7 +253,8 @@ impl QuasiNewtonStepper {
         &self.last
     }
 
-    /// Numeric factorisations of the initial Hessian since the stepper was built: one.
+    /// Numeric factorisations of the initial Hessian since the stepper was built: one, plus one
+    /// for each change of the model's layout (a grab started or ended).
     pub fn factorisations(&self) -> usize {
         self.system.factorisations()
     }
@@ -275,6 +281,7 @@ impl QuasiNewtonStepper {
             weight: w,
             target: &self.target,
             load: &self.load,
+            springs: model.springs(),
         };
         let (e, magnitude) = potential.value(x, &mut self.scratch);
         if gradient.is_some() && e.is_finite() {
@@ -286,9 +293,12 @@ impl QuasiNewtonStepper {
             };
             for (k, &v) in self.free.iter().enumerate() {
                 let v = v as usize;
-                let gv = (x[v] - self.target[v]) * (w * model.masses()[v])
+                let mut gv = (x[v] - self.target[v]) * (w * model.masses()[v])
                     - self.load[v]
                     - self.forces[v];
+                if let Some(s) = spring_of(model.springs(), v) {
+                    gv += (x[v] - s.goal) * s.stiffness;
+                }
                 out[k] = gv.x;
                 out[n + k] = gv.y;
             }
@@ -377,6 +387,11 @@ impl Stepper for QuasiNewtonStepper {
         state: &mut State,
     ) -> Result<StepReport, SolverError> {
         check_step_inputs(model, self.n_triangles, state)?;
+        if model.layout() != self.layout {
+            let earlier = self.factorisations();
+            *self = QuasiNewtonStepper::new(model, self.params)?;
+            self.system.add_earlier(earlier);
+        }
         let (h, t) = (self.params.dt, state.t);
         let w = 1.0 / (h * h);
         external_load(model, &mut self.load);
@@ -392,14 +407,14 @@ impl Stepper for QuasiNewtonStepper {
             self.x[i] = *xh + self.load[i] * (h * h / masses[i]);
         }
         let kinematics = model.kinematics();
-        kinematics.apply(t, h, &state.x, &mut self.x, &mut self.v_new);
+        kinematics.apply(t, h, t + h, &state.x, &mut self.x, &mut self.v_new);
         let mut report = QuasiNewtonReport::default();
         let (mut energy, mut magnitude) = self.evaluate(model, w, Which::X, Some(Which::X));
         if !energy.is_finite()
             || (self.forbids_inversion && inversion(&self.els, &self.x).inverted > 0)
         {
             self.x.copy_from_slice(&state.x);
-            kinematics.apply(t, h, &state.x, &mut self.x, &mut self.v_new);
+            kinematics.apply(t, h, t + h, &state.x, &mut self.x, &mut self.v_new);
             (energy, magnitude) = self.evaluate(model, w, Which::X, Some(Which::X));
             report.fallback_guess = true;
         }
@@ -480,6 +495,7 @@ impl Stepper for QuasiNewtonStepper {
             &mut self.x,
             &mut self.v_new,
             h,
+            t + h,
             self.decay,
             true,
         )?;

@@ -32,6 +32,7 @@
 use fem_core::energy::Energy;
 use fem_core::math::{Real, Vec2};
 
+use crate::bc::Motion;
 use crate::commit::{Kinematic, StepEnd};
 use crate::error::{SolverError, check_at_most, check_count};
 use crate::implicit::external_load;
@@ -114,6 +115,8 @@ pub struct StaticStepper {
     /// Halvings so far in this run.
     halvings: usize,
     last: NewtonReport,
+    /// The model layout the free degrees of freedom were analysed for.
+    layout: u64,
 }
 
 impl StaticStepper {
@@ -133,8 +136,8 @@ impl StaticStepper {
         let mut displacement = Vec::with_capacity(kinematic.len());
         for k in 0..kinematic.len() {
             let u = match kin.motion[k] {
-                None => Vec2::zeros(),
-                Some(m) => {
+                Motion::Pinned | Motion::Held(_) => Vec2::zeros(),
+                Motion::Scheduled(m) => {
                     let motion = &kin.motions[m as usize];
                     if motion.velocity == Vec2::zeros() {
                         Vec2::zeros()
@@ -154,6 +157,7 @@ impl StaticStepper {
         let solver = NewtonSolver::new(model.mesh(), &kinematic, "static")?;
         let n = model.mesh().n_vertices();
         Ok(StaticStepper {
+            layout: model.layout(),
             increment: 1.0 / params.load_steps as Real,
             params,
             n_triangles: model.mesh().n_triangles(),
@@ -232,7 +236,14 @@ impl Stepper for StaticStepper {
         state: &mut State,
     ) -> Result<StepReport, SolverError> {
         check_step_inputs(model, self.n_triangles, state)?;
-        if state.t >= 1.0 {
+        if model.layout() != self.layout {
+            let (increment, halvings) = (self.increment, self.halvings);
+            *self = StaticStepper::new(model, self.params)?;
+            (self.increment, self.halvings) = (increment, halvings);
+        }
+        // At full load the equilibrium is reached; with a grab it is solved again at every
+        // step, following the hand.
+        if state.t >= 1.0 && model.active_grab().is_none() {
             let (mut min_det_f, mut inverted) = (Real::INFINITY, 0);
             let mesh = model.mesh();
             for (t, el) in mesh.elements().iter().enumerate() {
@@ -265,13 +276,24 @@ impl Stepper for StaticStepper {
                 *s = next * l;
             }
             self.x_new.copy_from_slice(&state.x);
-            for ((&v, o), u) in self
+            let kin = model.kinematics();
+            for (k, ((&v, o), u)) in self
                 .kinematic
                 .iter()
                 .zip(&self.origin)
                 .zip(&self.displacement)
+                .enumerate()
             {
-                self.x_new[v] = o + next * u;
+                self.x_new[v] = match kin.motion[k] {
+                    // A grabbed vertex goes from where it is to its goal over the rest of
+                    // the load, in proportion (on it exactly at load factor 1).
+                    Motion::Held(goal) if next < 1.0 => {
+                        let here = state.x[v];
+                        here + (goal - here) * ((next - from) / (1.0 - from))
+                    }
+                    Motion::Held(goal) => goal,
+                    _ => o + next * u,
+                };
             }
             let potential = Potential {
                 mesh: model.mesh(),
@@ -280,6 +302,7 @@ impl Stepper for StaticStepper {
                 weight: 0.0,
                 target: &[],
                 load: &self.scaled,
+                springs: model.springs(),
             };
             let outcome =
                 self.solver

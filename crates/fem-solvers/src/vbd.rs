@@ -8,10 +8,11 @@
 //! `x_hat = x + h v`, `f` = gravity `m g` plus the nodal loads,
 //!
 //! by Gauss-Seidel over vertex blocks: vertex `i`'s local potential `G_i(x_i)` (its inertia,
-//! its load and the energy of the triangles around it, the other vertices held) gets one
-//! Newton step with the 2x2 block
+//! its load, the energy of the triangles around it, the other vertices held, and the drag
+//! attachment's spring `k_i / 2 |x_i - goal_i|^2` when a spring grab holds it, see
+//! [`crate::grab`]) gets one Newton step with the 2x2 block
 //!
-//! `H_i = m_i / h^2 I + sum_e a_e B_e`,  `(B_e)_ik = sum_jl g_j dP_ij/dF_kl g_l`,
+//! `H_i = (m_i / h^2 + k_i) I + sum_e a_e B_e`,  `(B_e)_ik = sum_jl g_j dP_ij/dF_kl g_l`,
 //!
 //! from every energy's `P` and `dP/dF`, with `g` the shape-function gradient of the vertex's
 //! corner. **Definiteness fix:** each triangle's block `B_e` has its negative eigenvalue
@@ -69,6 +70,7 @@ use rayon::prelude::*;
 use crate::colour::VertexColouring;
 use crate::commit::{Kinematic, StepEnd};
 use crate::error::{SolverError, check_count, check_non_negative, check_positive, check_rho};
+use crate::grab::{Spring, spring_of};
 use crate::implicit::external_load;
 use crate::kernel::{ELEMENT_CHUNK, Inversion, PackedElement, deformation_gradient, pack};
 use crate::limits;
@@ -199,6 +201,8 @@ pub struct VbdStepper {
     /// The velocities at the start of the last substep (adaptive guess), if any.
     v_prev: Option<Vec<Vec2>>,
     stats: VbdStats,
+    /// The model layout the vertices were coloured for.
+    layout: u64,
 }
 
 /// One vertex update: gradient norm before it (N), and how it went.
@@ -270,6 +274,8 @@ struct Local<'a, E: Energy> {
     forbids_inversion: bool,
     /// The P-wave modulus, Pa: the scale of `psi`'s terms.
     modulus: Real,
+    /// The springs of a spring grab, sorted by vertex.
+    springs: &'a [Spring],
 }
 
 impl<E: Energy> Local<'_, E> {
@@ -278,6 +284,9 @@ impl<E: Energy> Local<'_, E> {
     fn potential(&self, v: usize, x: &[Vec2], p: Vec2) -> Real {
         let mw = self.masses[v] * self.w;
         let mut e = 0.5 * mw * (p - self.target[v]).norm_squared() - self.load[v].dot(&(p - x[v]));
+        if let Some(s) = spring_of(self.springs, v) {
+            e += 0.5 * s.stiffness * (p - s.goal).norm_squared();
+        }
         for &(t, corner) in self.adj.of(v) {
             let el = &self.els[t as usize];
             e += el.area
@@ -302,6 +311,15 @@ impl<E: Energy> Local<'_, E> {
         let mw = self.masses[v] * self.w;
         let mut g = (xi - self.target[v]) * mw - self.load[v];
         let (mut h00, mut h01, mut h11) = (mw, 0.0, mw);
+        // A grab's spring is one more quadratic term of the local potential.
+        let spring = spring_of(self.springs, v);
+        let mut spring_energy = 0.0;
+        if let Some(s) = spring {
+            g += (xi - s.goal) * s.stiffness;
+            h00 += s.stiffness;
+            h11 += s.stiffness;
+            spring_energy = 0.5 * s.stiffness * (xi - s.goal).norm_squared();
+        }
         let mut elastic = 0.0;
         let mut elastic_magnitude = 0.0;
         let mut local_area = 0.0;
@@ -354,7 +372,7 @@ impl<E: Energy> Local<'_, E> {
             return (xi + step, out);
         }
         // The starting value, in the same frame as `potential` (inertia and load from x[v]).
-        let inertia = 0.5 * mw * (xi - self.target[v]).norm_squared();
+        let inertia = 0.5 * mw * (xi - self.target[v]).norm_squared() + spring_energy;
         let start = inertia + elastic;
         // The round-off of the local potential: eps times its terms, and psi's terms are of
         // the order of the modulus, not of psi (as in Newton's line search). A change below it
@@ -383,7 +401,8 @@ impl<E: Energy> Local<'_, E> {
 /// The end of a step of the solvers that minimise implicit Euler's potential by iterations
 /// (VBD, Projective Dynamics, quasi-Newton): the inversion statistics of the new positions
 /// `x`, the velocities `(x - x_t) / h` damped by `decay` into `v_new`, and the commit (kinematic
-/// vertices on their schedule over `[t, t + h]`). Returns the statistics.
+/// vertices on their schedule over `[t, t + h]` of a step that ends at `until`). Returns the
+/// statistics.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn commit_positions<E: Energy>(
     model: &Model<E>,
@@ -392,6 +411,7 @@ pub(crate) fn commit_positions<E: Energy>(
     x: &mut Vec<Vec2>,
     v_new: &mut Vec<Vec2>,
     h: Real,
+    until: Real,
     decay: Real,
     count_step: bool,
 ) -> Result<Inversion, SolverError> {
@@ -401,7 +421,7 @@ pub(crate) fn commit_positions<E: Energy>(
     }
     let t = state.t;
     StepEnd {
-        kinematics: Kinematic::Schedule { t, dt: h },
+        kinematics: Kinematic::Schedule { t, dt: h, until },
         x,
         v: v_new,
         bodies: None,
@@ -466,6 +486,7 @@ impl VbdStepper {
             chebyshev: Chebyshev::default(),
             v_prev: None,
             stats: VbdStats::default(),
+            layout: model.layout(),
         })
     }
 
@@ -633,6 +654,13 @@ impl Stepper for VbdStepper {
         state: &mut State,
     ) -> Result<StepReport, SolverError> {
         check_step_inputs(model, self.n_triangles, state)?;
+        if model.layout() != self.layout {
+            // The free vertices changed (a pinning grab): colour them again.
+            let v_prev = self.v_prev.take();
+            *self = VbdStepper::new(model, self.params)?;
+            self.v_prev = v_prev;
+        }
+        let until = state.t + self.params.dt;
         let h = self.h;
         let n = model.mesh().n_vertices();
         let rho = self.params.chebyshev_rho;
@@ -647,10 +675,10 @@ impl Stepper for VbdStepper {
             }
             self.initial_guess(model, state);
             let kinematics = model.kinematics();
-            kinematics.apply(t, h, &state.x, &mut self.x, &mut self.v_new);
+            kinematics.apply(t, h, until, &state.x, &mut self.x, &mut self.v_new);
             if self.forbids_inversion && inversion(&self.els, &self.x).inverted > 0 {
                 self.x.copy_from_slice(&state.x);
-                kinematics.apply(t, h, &state.x, &mut self.x, &mut self.v_new);
+                kinematics.apply(t, h, until, &state.x, &mut self.x, &mut self.v_new);
                 stats.fallback_guess = true;
             }
             let local = Local {
@@ -664,6 +692,7 @@ impl Stepper for VbdStepper {
                 line_search: self.params.line_search,
                 forbids_inversion: self.forbids_inversion,
                 modulus: model.p_wave_modulus(),
+                springs: model.springs(),
             };
             if rho > 0.0 {
                 self.chebyshev.start(&self.x);
@@ -698,6 +727,7 @@ impl Stepper for VbdStepper {
                 &mut self.x,
                 &mut self.v_new,
                 h,
+                until,
                 self.decay,
                 sub + 1 == self.params.substeps,
             )?;

@@ -10,6 +10,7 @@ mod contact;
 mod critical_time_step;
 mod determinism;
 mod explicit;
+mod grab;
 mod implicit;
 mod position_based;
 mod projective;
