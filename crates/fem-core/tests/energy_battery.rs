@@ -9,7 +9,10 @@
 //! - the linearisation at `F = I` equals linear elasticity with the same Lamé parameters;
 //! - the projected `dP/dF` is symmetric positive semi-definite, equals `dP/dF` where that is
 //!   already PSD, and is positive definite at rest;
-//! - the batched `pk1_lanes` equals `pk1` lane by lane, bit for bit.
+//! - the batched `pk1_lanes` equals `pk1` lane by lane, bit for bit;
+//! - the corner block `pk1_corner_block` returns `pk1` bit for bit and the contraction of
+//!   `dP/dF` with the corner gradient to round-off (`1e-12` relative to its largest entry),
+//!   and is symmetric.
 //!
 //! Tolerances. The FD oracle sweeps steps `1e-2..1e-8` and keeps the best: for these smooth
 //! functions of O(1) arguments with O(1e3) values the best central difference is accurate to
@@ -21,10 +24,12 @@
 mod common;
 
 use common::Rng;
-use fem_core::energy::{Corotational, Energy, Linear, NeoHookean, StableNeoHookean, Stvk};
+use fem_core::energy::{
+    Corotational, Energy, Linear, NeoHookean, StableNeoHookean, Stvk, contract_corner,
+};
 use fem_core::fd::{FdOptions, check_gradient, check_jacobian};
 use fem_core::material::{Material, PlaneModel};
-use fem_core::math::{LANES, Mat2, Mat2Lanes, Mat4, Real, rotation, unvec, vec};
+use fem_core::math::{LANES, Mat2, Mat2Lanes, Mat4, Real, Vec2, rotation, unvec, vec};
 use fem_core::{Lame, dispatch_energy};
 use nalgebra::SymmetricEigen;
 
@@ -219,6 +224,35 @@ fn check_pk1_lanes_equals_pk1<E: Energy>(e: &E, fs: &[Mat2]) {
     }
 }
 
+/// `pk1_corner_block(F, g)`: `P` bit for bit, and the block equal to the contraction of
+/// `dP/dF` (checked against finite differences above) to round-off, symmetric.
+fn check_corner_block<E: Energy>(e: &E, fs: &[Mat2]) {
+    let mut rng = Rng::new(11);
+    for f in fs {
+        for _ in 0..3 {
+            let g = Vec2::new(rng.uniform(-3.0, 3.0), rng.uniform(-3.0, 3.0));
+            let (p, b) = e.pk1_corner_block(f, &g);
+            let want_p = e.pk1(f);
+            for (x, y) in p.iter().zip(want_p.iter()) {
+                assert!(
+                    x.to_bits() == y.to_bits() || (x.is_nan() && y.is_nan()),
+                    "{}: P of the corner block differs from pk1 at F = {f:?}",
+                    e.name()
+                );
+            }
+            let want = contract_corner(&e.dpk1(f), &g);
+            let scale = want.abs().max().max(modulus() * g.norm_squared());
+            let err = (b - want).abs().max();
+            assert!(
+                err <= ROUND_OFF * scale,
+                "{}: corner block at F = {f:?}, g = {g:?}: {b:?} vs {want:?} (error {err:e})",
+                e.name()
+            );
+            assert!((b[(0, 1)] - b[(1, 0)]).abs() <= ROUND_OFF * scale);
+        }
+    }
+}
+
 macro_rules! energy_battery {
     ($module:ident, $make:expr, inverted: $inv:expr, frame_indifferent: $fi:expr) => {
         mod $module {
@@ -247,6 +281,11 @@ macro_rules! energy_battery {
             fn pk1_lanes_equals_pk1() {
                 // Include inverted samples for every energy: NaN must stay NaN.
                 check_pk1_lanes_equals_pk1(&energy(), &samples(7, true));
+            }
+
+            #[test]
+            fn corner_block_contracts_dpk1() {
+                check_corner_block(&energy(), &samples(8, $inv));
             }
 
             #[test]

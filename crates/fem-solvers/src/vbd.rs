@@ -14,16 +14,18 @@
 //!
 //! `H_i = (m_i / h^2 + k_i) I + sum_e a_e B_e`,  `(B_e)_ik = sum_jl g_j dP_ij/dF_kl g_l`,
 //!
-//! from every energy's `P` and `dP/dF`, with `g` the shape-function gradient of the vertex's
+//! from every energy's `P` and corner block `B_e` ([`Energy::pk1_corner_block`], in closed
+//! form for four of the five energies), with `g` the shape-function gradient of the vertex's
 //! corner. **Definiteness fix:** each triangle's block `B_e` has its negative eigenvalue
 //! clamped to zero before it is summed (StVK's, under compression, and every energy's under
 //! large shear can be indefinite), so `H_i` is always positive definite and the step a descent
 //! direction. **Line search** (`line_search`, default off, as in the paper): the step is
 //! halved (up to 8 times) until `G_i` is finite and not above its value at the start (within
 //! its round-off); otherwise the vertex stays. With it every vertex update lowers `G`, so the
-//! sweeps descend monotonically, at about 1.8 times the cost of a sweep; without it a step is
+//! sweeps descend monotonically, at 2 to 3 times the cost of a sweep; without it a step is
 //! still halved while it would invert a triangle of an energy that forbids inversion (its
-//! `psi` infinite at `det F <= 0`). Both reach the same step on every test.
+//! `psi` infinite at `det F <= 0`), tested exactly and cheaply by the rank-one update
+//! `det(F + s g^T) = det F + s . cof(F) g`. Both reach the same step on every test.
 //!
 //! **What it converges to.** As `iterations` grow, each step converges to a stationary point
 //! of `G`: the implicit Euler step, which Newton finds to its tolerance. The stepper battery's
@@ -63,7 +65,7 @@
 //! `init`, `chebyshev_rho`, `line_search`.
 
 use fem_core::energy::Energy;
-use fem_core::math::{Mat2, Real, Vec2, vec_index};
+use fem_core::math::{Mat2, Real, Vec2};
 use fem_core::mesh::VertexAdjacency;
 use rayon::prelude::*;
 
@@ -246,6 +248,10 @@ fn deformation_gradient_with(el: &PackedElement, x: &[Vec2], corner: u8, p: Vec2
 /// The symmetric 2x2 matrix `[[a, b], [b, c]]` with negative eigenvalues set to zero.
 #[inline(always)]
 fn psd2(a: Real, b: Real, c: Real) -> (Real, Real, Real) {
+    // Positive semidefinite already (the common case): no square root.
+    if a >= 0.0 && c >= 0.0 && a * c >= b * b {
+        return (a, b, c);
+    }
     let mean = 0.5 * (a + c);
     let r = (0.25 * (a - c) * (a - c) + b * b).sqrt();
     let (lo, hi) = (mean - r, mean + r);
@@ -259,6 +265,10 @@ fn psd2(a: Real, b: Real, c: Real) -> (Real, Real, Real) {
         (s * (a - lo), s * b, s * (c - lo))
     }
 }
+
+/// Triangles around a vertex whose orientation data a vertex update keeps on the stack; a
+/// vertex with more recomputes `det F` at each trial position instead.
+const FAN: usize = 16;
 
 /// What a vertex update reads.
 struct Local<'a, E: Energy> {
@@ -323,34 +333,35 @@ impl<E: Energy> Local<'_, E> {
         let mut elastic = 0.0;
         let mut elastic_magnitude = 0.0;
         let mut local_area = 0.0;
-        for &(t, corner) in self.adj.of(v) {
+        // For the orientation test: per triangle, det F and w = cof(F) g, since moving the
+        // vertex by s gives det(F + s g^T) = det F + s . w exactly (a rank-one update).
+        let mut fan_det = [0.0; FAN];
+        let mut fan_w = [Vec2::zeros(); FAN];
+        let fan = self.adj.of(v);
+        let cheap_orientation = self.forbids_inversion && !self.line_search && fan.len() <= FAN;
+        for (i, &(t, corner)) in fan.iter().enumerate() {
             let el = &self.els[t as usize];
             local_area += el.area;
             let f = deformation_gradient(el, x);
-            let p = if self.line_search {
-                let (psi, p) = self.energy.psi_pk1(&f);
+            if self.line_search {
+                let psi = self.energy.psi(&f);
                 elastic += el.area * psi;
                 elastic_magnitude += el.area * psi.abs();
-                p
-            } else {
-                self.energy.pk1(&f)
-            };
-            let ga = corner_gradient(el, corner);
-            g += (p * ga) * el.area;
-            let d = self.energy.dpk1(&f);
-            let mut b = [[0.0; 2]; 2];
-            for (i, row) in b.iter_mut().enumerate() {
-                for (k, out) in row.iter_mut().enumerate() {
-                    let mut s = 0.0;
-                    for j in 0..2 {
-                        for l in 0..2 {
-                            s += ga[j] * d[(vec_index(i, j), vec_index(k, l))] * ga[l];
-                        }
-                    }
-                    *out = el.area * s;
-                }
             }
-            let (p00, p01, p11) = psd2(b[0][0], 0.5 * (b[0][1] + b[1][0]), b[1][1]);
+            let ga = corner_gradient(el, corner);
+            // P and the corner block sum_jl g_j dP_ij/dF_kl g_l in one call (closed forms
+            // that share the energy's work, e.g. one polar decomposition).
+            let (p, block) = self.energy.pk1_corner_block(&f, &ga);
+            if cheap_orientation {
+                fan_det[i] = f.determinant();
+                fan_w[i] = Vec2::new(
+                    f[(1, 1)] * ga.x - f[(1, 0)] * ga.y,
+                    f[(0, 0)] * ga.y - f[(0, 1)] * ga.x,
+                );
+            }
+            g += (p * ga) * el.area;
+            let b = block * el.area;
+            let (p00, p01, p11) = psd2(b[(0, 0)], 0.5 * (b[(0, 1)] + b[(1, 0)]), b[(1, 1)]);
             h00 += p00;
             h01 += p01;
             h11 += p11;
@@ -378,12 +389,23 @@ impl<E: Energy> Local<'_, E> {
         // the order of the modulus, not of psi (as in Newton's line search). A change below it
         // says nothing, and the step is taken when it is valid (finite).
         let floor = 1e-12 * (inertia + elastic_magnitude + self.modulus * local_area);
+        let mut fan_rate = [0.0; FAN];
+        if cheap_orientation {
+            for (r, w) in fan_rate.iter_mut().zip(&fan_w[..fan.len()]) {
+                *r = step.dot(w);
+            }
+        }
         let mut alpha = 1.0;
         for k in 0..=LOCAL_HALVINGS {
             let p = xi + step * alpha;
             let ok = if self.line_search {
                 let e = self.potential(v, x, p);
                 e.is_finite() && e <= start + floor
+            } else if cheap_orientation {
+                fan_det[..fan.len()]
+                    .iter()
+                    .zip(&fan_rate)
+                    .all(|(d, r)| d + alpha * r > 0.0)
             } else {
                 self.keeps_orientation(v, x, p)
             };

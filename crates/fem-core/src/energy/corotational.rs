@@ -17,7 +17,7 @@
 
 use super::Energy;
 use crate::material::Lame;
-use crate::math::{Mat2, Mat4, Real, linear_map_matrix};
+use crate::math::{Mat2, Mat4, Real, Vec2, linear_map_matrix};
 use crate::polar::Polar2;
 
 /// Co-rotational linear elasticity.
@@ -71,6 +71,25 @@ impl Energy for Corotational {
         let r = Polar2::new(f).rotation();
         let t = r[(0, 0)] * (f[(0, 0)] + f[(1, 1)]) + r[(1, 0)] * (f[(1, 0)] - f[(0, 1)]) - 2.0;
         self.lambda * t / f.determinant()
+    }
+
+    /// Closed form: for `dF = u g^T`, `tr(R^T dF) = r . u` with `r = R g`, and
+    /// `dR g = R' g dtheta = (J r) (J r . u) / |(A, B)|` with `J r = (-r_y, r_x)` (see
+    /// [`Polar2::dtheta`]), so `B = 2 mu |g|^2 I + lambda r r^T + (lambda t - 2 mu) / |(A, B)|
+    /// (J r)(J r)^T`, `t = tr(R^T F) - 2`. One polar decomposition serves `P` and `B`.
+    #[inline]
+    fn pk1_corner_block(&self, f: &Mat2, g: &Vec2) -> (Mat2, Mat2) {
+        let polar = Polar2::new(f);
+        let r = polar.rotation();
+        let t = r[(0, 0)] * (f[(0, 0)] + f[(1, 1)]) + r[(1, 0)] * (f[(1, 0)] - f[(0, 1)]) - 2.0;
+        let p = (f - r) * (2.0 * self.mu) + r * (self.lambda * t);
+        let rg = r * g;
+        let jr = Vec2::new(-rg.y, rg.x);
+        let k = (self.lambda * t - 2.0 * self.mu) * polar.inv_norm;
+        let b = Mat2::identity() * (2.0 * self.mu * g.norm_squared())
+            + rg * rg.transpose() * self.lambda
+            + jr * jr.transpose() * k;
+        (p, b)
     }
 
     fn dpk1(&self, f: &Mat2) -> Mat4 {

@@ -12,7 +12,7 @@
 
 use super::Energy;
 use crate::material::Lame;
-use crate::math::{Mat2, Mat4, Real, linear_map_matrix, sym};
+use crate::math::{Mat2, Mat4, Real, Vec2, linear_map_matrix, sym};
 
 /// Linear elasticity.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -52,6 +52,14 @@ impl Energy for Linear {
     fn pk1(&self, f: &Mat2) -> Mat2 {
         let eps = sym(f) - Mat2::identity();
         eps * (2.0 * self.mu) + Mat2::identity() * (self.lambda * eps.trace())
+    }
+
+    /// Closed form (constant in `F`): `B = mu |g|^2 I + (mu + lambda) g g^T`.
+    #[inline]
+    fn pk1_corner_block(&self, f: &Mat2, g: &Vec2) -> (Mat2, Mat2) {
+        let b = Mat2::identity() * (self.mu * g.norm_squared())
+            + g * g.transpose() * (self.mu + self.lambda);
+        (self.pk1(f), b)
     }
 
     /// The small-strain `sigma_zz = lambda tr(eps)` (`eps_zz = 0`): no push-forward.

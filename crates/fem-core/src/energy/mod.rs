@@ -32,7 +32,7 @@ pub use stvk::Stvk;
 use nalgebra::SymmetricEigen;
 
 use crate::material::Lame;
-use crate::math::{LANES, Mat2, Mat2Lanes, Mat4, Real};
+use crate::math::{LANES, Mat2, Mat2Lanes, Mat4, Real, Vec2, vec_index};
 
 /// A hyperelastic energy density of the deformation gradient.
 ///
@@ -72,6 +72,20 @@ pub trait Energy: Send + Sync + Clone + fmt::Debug {
         self.pk1(f) * f.transpose() / f.determinant()
     }
 
+    /// `P` and the 2x2 **corner block** `B_ik = sum_jl g_j dP_ij/dF_kl g_l` for a corner whose
+    /// shape-function gradient is `g`: when that corner moves by `u`, `F` moves by `u g^T` and
+    /// `dP g = B u`, so `a B` is the Hessian of the element energy `a psi` with respect to the
+    /// corner's position (Vertex Block Descent's per-vertex Newton step sums it over the
+    /// triangles around a vertex). `B` is symmetric, not necessarily positive definite.
+    ///
+    /// The default contracts [`Energy::dpk1`] (16 entries, 64 products); energies override it
+    /// with a closed form in `g` that shares work with `P` (a test checks every override
+    /// against the default to round-off).
+    #[inline]
+    fn pk1_corner_block(&self, f: &Mat2, g: &Vec2) -> (Mat2, Mat2) {
+        (self.pk1(f), contract_corner(&self.dpk1(f), g))
+    }
+
     /// `psi` and `P` together; energies override it when the two share work.
     fn psi_pk1(&self, f: &Mat2) -> (Real, Mat2) {
         (self.psi(f), self.pk1(f))
@@ -92,6 +106,25 @@ pub trait Energy: Send + Sync + Clone + fmt::Debug {
         }
         p
     }
+}
+
+/// `B_ik = sum_jl g_j D_(ij),(kl) g_l`: the corner block of `dP/dF = D` (see
+/// [`Energy::pk1_corner_block`]).
+#[inline]
+pub fn contract_corner(d: &Mat4, g: &Vec2) -> Mat2 {
+    let mut b = Mat2::zeros();
+    for i in 0..2 {
+        for k in 0..2 {
+            let mut s = 0.0;
+            for j in 0..2 {
+                for l in 0..2 {
+                    s += g[j] * d[(vec_index(i, j), vec_index(k, l))] * g[l];
+                }
+            }
+            b[(i, k)] = s;
+        }
+    }
+    b
 }
 
 /// Clamp the eigenvalues of the symmetric part of `m` at zero and rebuild it.
@@ -284,6 +317,9 @@ impl Energy for AnyEnergy {
     }
     fn psi_pk1(&self, f: &Mat2) -> (Real, Mat2) {
         dispatch_energy!(self, e => e.psi_pk1(f))
+    }
+    fn pk1_corner_block(&self, f: &Mat2, g: &Vec2) -> (Mat2, Mat2) {
+        dispatch_energy!(self, e => e.pk1_corner_block(f, g))
     }
     fn cauchy_zz(&self, f: &Mat2) -> Real {
         dispatch_energy!(self, e => e.cauchy_zz(f))

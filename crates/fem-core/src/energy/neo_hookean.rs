@@ -20,7 +20,7 @@
 
 use super::Energy;
 use crate::material::Lame;
-use crate::math::{Mat2, Mat2Lanes, Mat4, Real, cofactor, linear_map_matrix, ln, outer};
+use crate::math::{Mat2, Mat2Lanes, Mat4, Real, Vec2, cofactor, linear_map_matrix, ln, outer};
 
 /// Compressible Neo-Hookean energy.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -92,6 +92,25 @@ impl Energy for NeoHookean {
         // P = mu F + (lambda log J - mu) F^-T, with F^-T = cof(F) / J: one division.
         let p = f * self.mu + cofactor(f) * ((self.lambda * lj - self.mu) / j);
         (psi, p)
+    }
+
+    /// Closed form: with `a = F^-T g`, `dP g = mu |g|^2 u + (mu + lambda (1 - log J)) a (a . u)`
+    /// for `dF = u g^T` (the three terms of `dP` in the module docs), so
+    /// `B = mu |g|^2 I + (mu + lambda (1 - log J)) a a^T`. NaN for `J <= 0`.
+    #[inline]
+    fn pk1_corner_block(&self, f: &Mat2, g: &Vec2) -> (Mat2, Mat2) {
+        let j = f.determinant();
+        if j <= 0.0 {
+            return (Mat2::from_element(Real::NAN), Mat2::from_element(Real::NAN));
+        }
+        let lj = ln(j);
+        let cof = cofactor(f);
+        let p = f * self.mu + cof * ((self.lambda * lj - self.mu) / j);
+        let a = cof * g / j;
+        let c = self.mu + self.lambda * (1.0 - lj);
+        let d = self.mu * g.norm_squared();
+        let off = c * a.x * a.y;
+        (p, Mat2::new(d + c * a.x * a.x, off, off, d + c * a.y * a.y))
     }
 
     /// `sigma_zz = lambda log J / J` (the 3D form with `F33 = 1`: `P33 = lambda log J`);

@@ -14,7 +14,7 @@
 
 use super::Energy;
 use crate::material::Lame;
-use crate::math::{Mat2, Mat4, Real, ddot, linear_map_matrix, sym};
+use crate::math::{Mat2, Mat4, Real, Vec2, ddot, linear_map_matrix, sym};
 
 /// Saint Venant-Kirchhoff energy.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -73,6 +73,18 @@ impl Energy for Stvk {
     #[inline]
     fn cauchy_zz(&self, f: &Mat2) -> Real {
         self.lambda * Self::green(f).trace() / f.determinant()
+    }
+
+    /// Closed form: for `dF = u g^T`, `dE = (g b^T + b g^T) / 2` with `b = F^T u`, so with
+    /// `c = F g`, `B = (g . S g) I + (mu + lambda) c c^T + mu |g|^2 F F^T`.
+    #[inline]
+    fn pk1_corner_block(&self, f: &Mat2, g: &Vec2) -> (Mat2, Mat2) {
+        let s = self.pk2(&Self::green(f));
+        let c = f * g;
+        let b = Mat2::identity() * g.dot(&(s * g))
+            + c * c.transpose() * (self.mu + self.lambda)
+            + f * f.transpose() * (self.mu * g.norm_squared());
+        (f * s, b)
     }
 
     fn dpk1(&self, f: &Mat2) -> Mat4 {
