@@ -53,10 +53,29 @@ pub fn cofactor(f: &Mat2) -> Mat2 {
     Mat2::new(f[(1, 1)], -f[(1, 0)], -f[(0, 1)], f[(0, 0)])
 }
 
+/// `e^x`, the same bits on every target (the `libm` crate: the platform's own `exp` differs
+/// between a native build and WebAssembly in the last bit, which a damped run would carry).
+#[inline]
+pub fn exp(x: Real) -> Real {
+    libm::exp(x)
+}
+
+/// `ln(1 + x)`, the same bits on every target (see [`exp`]).
+#[inline]
+pub fn ln_1p(x: Real) -> Real {
+    libm::log1p(x)
+}
+
+/// `(sin x, cos x)`, the same bits on every target (see [`exp`]).
+#[inline]
+pub fn sin_cos(x: Real) -> (Real, Real) {
+    libm::sincos(x)
+}
+
 /// Rotation matrix by angle `theta` (counter-clockwise).
 #[inline]
 pub fn rotation(theta: Real) -> Mat2 {
-    let (s, c) = theta.sin_cos();
+    let (s, c) = sin_cos(theta);
     Mat2::new(c, -s, s, c)
 }
 

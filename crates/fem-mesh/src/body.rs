@@ -60,8 +60,8 @@ fn ellipsoid(s: &mut Surface3, centre: [f64; 3], radii: [f64; 3]) {
     let segments = ((2.0 * PI * big / SPACING).ceil() as usize).max(12);
     let rings = ((PI * big / SPACING).ceil() as usize).max(6);
     lat_long(s, rings, segments, |theta, phi| {
-        let (st, ct) = theta.sin_cos();
-        let (sp, cp) = phi.sin_cos();
+        let (st, ct) = libm::sincos(theta);
+        let (sp, cp) = libm::sincos(phi);
         [
             centre[0] + radii[0] * st * cp,
             centre[1] + radii[1] * ct,
@@ -93,14 +93,14 @@ fn capsule(s: &mut Surface3, a: [f64; 3], b: [f64; 3], radius: f64) {
         // Position along the axis from `a`, and distance from the axis.
         let (along, r) = if t < cap {
             let alpha = t / radius;
-            (-radius * alpha.cos(), radius * alpha.sin())
+            (-radius * libm::cos(alpha), radius * libm::sin(alpha))
         } else if t > cap + len {
             let alpha = (total - t) / radius;
-            (len + radius * alpha.cos(), radius * alpha.sin())
+            (len + radius * libm::cos(alpha), radius * libm::sin(alpha))
         } else {
             (t - cap, radius)
         };
-        let (sp, cp) = phi.sin_cos();
+        let (sp, cp) = libm::sincos(phi);
         let mut p = [0.0; 3];
         for k in 0..3 {
             p[k] = a[k] + w[k] * along + r * (u[k] * cp + v[k] * sp);

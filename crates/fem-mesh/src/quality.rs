@@ -41,7 +41,7 @@ pub fn triangle_angles_deg([a, b, c]: [[f64; 2]; 3]) -> [f64; 3] {
         let v = [r[0] - p[0], r[1] - p[1]];
         let cross = u[0] * v[1] - u[1] * v[0];
         let dot = u[0] * v[0] + u[1] * v[1];
-        cross.abs().atan2(dot).to_degrees()
+        libm::atan2(cross.abs(), dot).to_degrees()
     };
     [angle(a, b, c), angle(b, c, a), angle(c, a, b)]
 }

@@ -283,6 +283,6 @@ fn corner_angle_deg(a: [f64; 2], b: [f64; 2], c: [f64; 2]) -> f64 {
     let v = [c[0] - b[0], c[1] - b[1]];
     let cross = u[0] * v[1] - u[1] * v[0];
     let dot = u[0] * v[0] + u[1] * v[1];
-    let angle = cross.abs().atan2(dot).to_degrees();
+    let angle = libm::atan2(cross.abs(), dot).to_degrees();
     if cross <= 0.0 { angle } else { 360.0 - angle }
 }

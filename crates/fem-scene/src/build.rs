@@ -19,7 +19,7 @@ use fem_mesh::structured::{RectangleParams, rectangle};
 use fem_mesh::triangulate::TriangulateParams;
 use fem_solvers::{
     AnyStepper, Clock, ContactParams, Ground, Model, ObstacleMotion, PrescribedMotion, Region,
-    SolverError,
+    SolverError, State,
 };
 
 use crate::error::SceneError;
@@ -175,7 +175,7 @@ pub fn mesh_pipeline(
 /// box's lower-left corner to `align_min` (when given).
 fn place(mesh: &mut Mesh2, deg: f64, align_min: Option<[f64; 2]>) {
     if deg != 0.0 {
-        let (s, c) = deg.to_radians().sin_cos();
+        let (s, c) = fem_core::math::sin_cos(deg.to_radians());
         for p in &mut mesh.vertices {
             *p = [c * p[0] - s * p[1], s * p[0] + c * p[1]];
         }
@@ -401,6 +401,30 @@ pub fn resolve_probes(scene: &LoadedScene, mesh: &Mesh) -> Vec<Probe> {
             }
         })
         .collect()
+}
+
+/// The scene's state at `t = 0`: at rest, in the rest shape or the `[initial]` deformation.
+pub fn initial_state<E: Energy>(
+    scene: &LoadedScene,
+    model: &Model<E>,
+) -> Result<State, SceneError> {
+    match &scene.scene.initial {
+        None => Ok(State::at_rest(model)),
+        Some(init) => {
+            let x = model
+                .mesh()
+                .vertices()
+                .iter()
+                .map(|p| {
+                    let q = init.apply([p.x, p.y]);
+                    Vec2::new(q[0], q[1])
+                })
+                .collect();
+            let v = vec![Vec2::zeros(); model.mesh().n_vertices()];
+            State::new(model, x, v)
+                .map_err(|e| SceneError::Scene(format!("{}: initial: {e}", scene.origin)))
+        }
+    }
 }
 
 /// The scene's stepper for `model`: the chosen solver of the registry, built from its own

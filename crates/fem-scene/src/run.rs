@@ -32,8 +32,8 @@ use fem_solvers::{
 use serde::{Deserialize, Serialize};
 
 use crate::build::{
-    MeshSource, NoFiles, Probe, build_mesh, build_model, build_stepper, energy, resolve_probes,
-    von_mises_formula,
+    MeshSource, NoFiles, Probe, build_mesh, build_model, build_stepper, energy, initial_state,
+    resolve_probes, von_mises_formula,
 };
 use crate::error::SceneError;
 use crate::scene::LoadedScene;
@@ -459,23 +459,7 @@ fn run_with<E: Energy>(
     let mut stepper = build_stepper(scene, &model)?;
     let probes = resolve_probes(scene, model.mesh());
     let time_step_warning = stepper.time_step_warning();
-    let mut state = match &s.initial {
-        None => State::at_rest(&model),
-        Some(init) => {
-            let x = model
-                .mesh()
-                .vertices()
-                .iter()
-                .map(|p| {
-                    let q = init.apply([p.x, p.y]);
-                    Vec2::new(q[0], q[1])
-                })
-                .collect();
-            let v = vec![Vec2::zeros(); model.mesh().n_vertices()];
-            State::new(&model, x, v)
-                .map_err(|e| SceneError::Scene(format!("{}: initial: {e}", scene.origin)))?
-        }
-    };
+    let mut state = initial_state(scene, &model)?;
     let (lo, hi) = bounds(model.mesh().vertices());
     let mut rec = Recorder {
         formula: von_mises_formula(scene),

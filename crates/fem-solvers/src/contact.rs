@@ -31,7 +31,7 @@
 //! vertices and positive area; their pose is then tracked as the centroid position and an angle
 //! in [`BodyState`].
 
-use fem_core::math::{Real, Vec2};
+use fem_core::math::{Real, Vec2, sin_cos};
 
 use crate::bc::window_overlap;
 use crate::error::{SolverError, check_finite_vec, check_non_negative, check_positive};
@@ -374,7 +374,7 @@ impl Obstacle {
 
     /// The polygon's world vertices at the pose `body`.
     pub fn world_polygon(&self, body: &BodyState) -> Vec<Vec2> {
-        let (s, c) = body.angle.sin_cos();
+        let (s, c) = sin_cos(body.angle);
         self.local
             .iter()
             .map(|p| body.position + Vec2::new(c * p.x - s * p.y, s * p.x + c * p.y))
@@ -485,7 +485,7 @@ struct Frame {
 
 impl Frame {
     fn of(b: &BodyState) -> Self {
-        let (s, c) = b.angle.sin_cos();
+        let (s, c) = sin_cos(b.angle);
         Frame {
             position: b.position,
             c,

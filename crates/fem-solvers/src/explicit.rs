@@ -19,7 +19,7 @@
 //! (`"symplectic"` | `"forward-euler"`).
 
 use fem_core::energy::Energy;
-use fem_core::math::{Real, Vec2};
+use fem_core::math::{Real, Vec2, exp};
 use fem_core::simd::Isa;
 use rayon::prelude::*;
 
@@ -108,7 +108,7 @@ impl ExplicitStepper {
         let n = model.mesh().n_vertices();
         Ok(ExplicitStepper {
             params,
-            decay: (-params.damping * params.dt).exp(),
+            decay: exp(-params.damping * params.dt),
             n_triangles: model.mesh().n_triangles(),
             check: model.check_time_step(params.dt),
             f: vec![Vec2::zeros(); n],

@@ -23,7 +23,7 @@
 //! `max_iterations`, `max_halvings`.
 
 use fem_core::energy::Energy;
-use fem_core::math::{Real, Vec2};
+use fem_core::math::{Real, Vec2, exp};
 
 use crate::commit::{Kinematic, StepEnd};
 use crate::error::{SolverError, check_non_negative, check_positive};
@@ -109,7 +109,7 @@ impl ImplicitStepper {
         let n = model.mesh().n_vertices();
         Ok(ImplicitStepper {
             layout: model.layout(),
-            decay: (-params.damping * params.dt).exp(),
+            decay: exp(-params.damping * params.dt),
             params,
             n_triangles: model.mesh().n_triangles(),
             solver,

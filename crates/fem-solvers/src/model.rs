@@ -12,7 +12,7 @@
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use fem_core::energy::Energy;
-use fem_core::math::{Mat2, Mat6, Real, Vec2};
+use fem_core::math::{Mat2, Mat6, Real, Vec2, exp, ln_1p};
 use fem_core::mesh::Mesh;
 use fem_core::simd::Isa;
 use nalgebra::SymmetricEigen;
@@ -657,7 +657,7 @@ impl TimeStepCheck {
     /// `c < ln(1 + (omega dt)^2) / dt` ([`TimeStepCheck::forward_euler_damping`]).
     pub fn forward_euler_growth(&self, damping: Real) -> Real {
         let w = self.omega() * self.dt;
-        let d = (-damping * self.dt).exp();
+        let d = exp(-damping * self.dt);
         let (trace, det) = (1.0 + d, d * (1.0 + w * w));
         let disc = trace * trace - 4.0 * det;
         if disc < 0.0 {
@@ -671,7 +671,7 @@ impl TimeStepCheck {
     /// `ln(1 + (omega dt)^2) / dt`.
     pub fn forward_euler_damping(&self) -> Real {
         let w = self.omega() * self.dt;
-        (w * w).ln_1p() / self.dt
+        ln_1p(w * w) / self.dt
     }
 
     /// A one-line warning when forward Euler with damping `damping` (1/s) amplifies the highest

@@ -64,7 +64,7 @@
 //! (`"consistent"` | `"literal"`), `xpbd_schedule` and `xpbd_lambda_reset`.
 
 use fem_core::energy::Energy;
-use fem_core::math::{Real, Vec2};
+use fem_core::math::{Real, Vec2, exp};
 use fem_core::mesh::VertexAdjacency;
 use rayon::prelude::*;
 
@@ -724,7 +724,7 @@ impl Engine {
         }
 
         // Velocities (lines 12-13).
-        let decay = (-self.damping * h).exp();
+        let decay = exp(-self.damping * h);
         let mut known_finite = true;
         for ((vn, xp), x) in self.v_new.iter_mut().zip(&self.x_pred).zip(&state.x) {
             let v = (xp - x) * (decay / h);

@@ -36,7 +36,7 @@
 //! `chebyshev_rho`.
 
 use fem_core::energy::Energy;
-use fem_core::math::{Mat2, Real, Vec2};
+use fem_core::math::{Mat2, Real, Vec2, exp};
 use fem_core::polar::Polar2;
 use rayon::prelude::*;
 
@@ -177,7 +177,7 @@ impl PdStepper {
         let free: Vec<u32> = (0..n as u32).filter(|&v| !kinematic[v as usize]).collect();
         Ok(PdStepper {
             layout: model.layout(),
-            decay: (-params.damping * h).exp(),
+            decay: exp(-params.damping * h),
             params,
             n_triangles: mesh.n_triangles(),
             els: pack(mesh),

@@ -32,7 +32,7 @@
 
 use fem_core::assembly::{Scratch, populate_forces};
 use fem_core::energy::Energy;
-use fem_core::math::{Real, Vec2};
+use fem_core::math::{Real, Vec2, exp};
 
 use crate::error::{SolverError, check_at_most, check_count, check_non_negative, check_positive};
 use crate::grab::spring_of;
@@ -215,7 +215,7 @@ impl QuasiNewtonStepper {
         let hist = params.history;
         Ok(QuasiNewtonStepper {
             layout: model.layout(),
-            decay: (-params.damping * h).exp(),
+            decay: exp(-params.damping * h),
             params,
             n_triangles: mesh.n_triangles(),
             els: pack(mesh),

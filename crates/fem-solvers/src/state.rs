@@ -68,6 +68,40 @@ impl State {
         self.x[vertex] - model.mesh().vertices()[vertex]
     }
 
+    /// A 64-bit fingerprint of the state (FNV-1a of the bits of positions, velocities,
+    /// rigid-body poses, time and step count): equal fingerprints mean bit-identical states
+    /// with overwhelming probability.
+    pub fn digest(&self) -> u64 {
+        // 64-bit FNV-1a over the bits, in a fixed order: a stable fingerprint to compare
+        // states across builds (native and WebAssembly), not for security.
+        let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+        let mut eat = |bits: u64| {
+            for b in bits.to_le_bytes() {
+                h ^= u64::from(b);
+                h = h.wrapping_mul(0x0000_0100_0000_01b3);
+            }
+        };
+        for p in self.x.iter().chain(&self.v) {
+            eat(p.x.to_bits());
+            eat(p.y.to_bits());
+        }
+        for b in &self.bodies {
+            for r in [
+                b.position.x,
+                b.position.y,
+                b.angle,
+                b.velocity.x,
+                b.velocity.y,
+                b.angular_velocity,
+            ] {
+                eat(r.to_bits());
+            }
+        }
+        eat(self.t.to_bits());
+        eat(self.step);
+        h
+    }
+
     /// `Ok` when the state's sizes match the model.
     pub fn check_matches<E: Energy>(&self, model: &Model<E>) -> Result<(), SolverError> {
         let n = model.mesh().n_vertices();

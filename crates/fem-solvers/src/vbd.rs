@@ -65,7 +65,7 @@
 //! `init`, `chebyshev_rho`, `line_search`.
 
 use fem_core::energy::Energy;
-use fem_core::math::{Mat2, Real, Vec2};
+use fem_core::math::{Mat2, Real, Vec2, exp};
 use fem_core::mesh::VertexAdjacency;
 use rayon::prelude::*;
 
@@ -493,7 +493,7 @@ impl VbdStepper {
         let h = params.dt / params.substeps as Real;
         Ok(VbdStepper {
             h,
-            decay: (-params.damping * h).exp(),
+            decay: exp(-params.damping * h),
             params,
             n_triangles: mesh.n_triangles(),
             els: pack(mesh),
