@@ -17,6 +17,10 @@
 //!   (`docs/stability.md`, with SVG plots in `docs/figures/`).
 //! - `cargo xtask figures`: the paper's Figures 1-5 and the plots into `docs/figures/`
 //!   (`fem2d figures`).
+//! - `cargo xtask web [--serve] [--port N] [--check] [--browser-test] [--screenshot PATH]`:
+//!   build the interactive app for WebAssembly into `target/web/`, serve it on 127.0.0.1,
+//!   check that the module steps scenes to the same bits as the native build, and drive the
+//!   page in headless Chromium (`docs/interactive.md`).
 //! - `cargo xtask goldens`: regenerate `fixtures/goldens/case-{a,b,c,d}.json`, checked by
 //!   `crates/fem-cases/tests/suite/goldens.rs`.
 //!
@@ -31,6 +35,7 @@ mod stability;
 mod svg;
 mod table1;
 mod util;
+mod web;
 
 use std::process::{Command, ExitCode};
 
@@ -57,7 +62,14 @@ tasks:
   figures              the paper's Figures 1-5, the probe curves and the case B stability
                        map (PNG and SVG), from `fem2d figures`, into docs/figures/
   goldens              regenerate fixtures/goldens/case-{a,b,c,d}.json (checked by
-                       cargo test -p fem-cases --test suite goldens)";
+                       cargo test -p fem-cases --test suite goldens)
+  web [--serve] [--port N] [--check] [--browser-test] [--screenshot PATH]
+                       build the interactive app (crates/fem-web) for WebAssembly into
+                       target/web/ (installs the wasm32 target when missing); --serve: serve
+                       it on http://127.0.0.1:8090/ (or N); --check: the module under node
+                       reaches the native build's states bit for bit; --browser-test: drag
+                       the body in headless Chromium (puppeteer-core from npm); --screenshot:
+                       save the test's picture";
 
 fn cargo(args: &[&str]) -> Result<(), String> {
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".to_owned());
@@ -102,6 +114,7 @@ fn run(args: &[String]) -> Result<(), String> {
         Some("bench-peers") => bench_peers::run(&rest),
         Some("goldens") => goldens::run(&rest),
         Some("figures") => figures::run(&rest),
+        Some("web") => web::run(&rest),
         Some("help" | "-h" | "--help") => {
             println!("{USAGE}");
             Ok(())

@@ -1,0 +1,224 @@
+//! The browser app's API, natively: real-time frames, grab / drag / release, switching solver
+//! and energy mid-run, restarts, bad input, blow-up and recovery, and that the app steps the
+//! scene exactly as `fem-scene` does (the same state, bit for bit).
+
+use fem_core::dispatch_energy;
+use fem_scene::build::{build_mesh, build_model, build_stepper, energy, initial_state};
+use fem_scene::cases::load_case;
+use fem_solvers::Stepper;
+use fem_web::{App, Field, MemoryFiles};
+
+/// Run whole frames of 1/60 s, taking every step each wants.
+fn frames(app: &mut App, n: usize) {
+    for _ in 0..n {
+        let want = app.begin_frame(1.0 / 60.0);
+        let took = app.step(want).unwrap();
+        app.end_frame(took, 1.0, 1.0 / 60.0);
+    }
+}
+
+#[test]
+fn frames_follow_wall_time_and_slow_down_honestly() {
+    let mut app = App::case("case-a").unwrap();
+    // Case A steps 1 ms: a 60 Hz frame wants 17 steps (rounded), and the clock follows.
+    assert_eq!(app.begin_frame(1.0 / 60.0), 17);
+    assert_eq!(app.step(17).unwrap(), 17);
+    app.end_frame(17, 2.0, 1.0 / 60.0);
+    let hud = app.hud().clone();
+    assert!((hud.t - 0.017).abs() < 1e-12, "t = {}", hud.t);
+    assert!(!hud.slowed);
+    assert!((hud.real_time_factor - 1.02).abs() < 1e-9);
+    // A frame after a long pause owes at most 0.1 s; taking only 10 of its steps slows the
+    // clock instead of carrying the debt.
+    assert_eq!(app.begin_frame(5.0), 100);
+    app.step(10).unwrap();
+    app.end_frame(10, 16.0, 5.0);
+    let hud = app.hud();
+    assert!(hud.slowed);
+    assert!((hud.real_time_factor - 0.002).abs() < 1e-12);
+    assert_eq!(app.begin_frame(1.0 / 60.0), 17, "no debt carried over");
+}
+
+#[test]
+fn a_pinned_grab_carries_the_tip_and_the_stress_rises_there() {
+    let mut app = App::case("case-a").unwrap();
+    let tip = app
+        .positions()
+        .iter()
+        .position(|p| p.x == 5.0 && p.y == 0.5)
+        .unwrap();
+    let vm_before = app.field(Field::VonMises);
+    assert!(
+        app.grab_at(4.99, 0.5, 0.0).unwrap(),
+        "a point on the body grabs"
+    );
+    assert!(
+        !app.grab_at(50.0, 50.0, 0.0).unwrap(),
+        "a point far off grabs nothing"
+    );
+    // Dragging up 1 m over 30 frames (the hand moves each frame).
+    for k in 1..=30 {
+        app.drag_to(4.99, 0.5 + k as f64 / 30.0).unwrap();
+        frames(&mut app, 1);
+    }
+    let p = app.positions()[tip];
+    assert!((p.y - 1.5).abs() < 0.02, "tip at {p:?}");
+    let hud = app.hud().clone();
+    let force = hud.grab_force.expect("a grab reports its force");
+    // The reaction of a dynamic, stretched beam: the hand pulls it along (+x) and holds it.
+    assert!(force[0] > 1.0 && force[0].is_finite(), "force {force:?}");
+    // Stress near the tip rose well above its value at rest.
+    let vm = app.field(Field::VonMises);
+    let near: Vec<usize> = app
+        .triangles()
+        .iter()
+        .enumerate()
+        .filter(|(_, t)| t.contains(&(tip as u32)))
+        .map(|(i, _)| i)
+        .collect();
+    assert!(near.iter().all(|&t| vm[t] > vm_before[t] + 1.0));
+    app.release();
+    assert!(app.hud().grab_force.is_none());
+    frames(&mut app, 5);
+    assert!(app.positions()[tip].y < 1.5, "released, the tip falls back");
+}
+
+#[test]
+fn a_spring_grab_pulls_with_a_force_proportional_to_the_gap() {
+    let mut app = App::case("case-a").unwrap();
+    assert!(app.grab_at(4.9, 0.6, 20.0).unwrap());
+    app.drag_to(4.9, 1.6).unwrap();
+    frames(&mut app, 1);
+    let f = app.hud().grab_force.unwrap();
+    assert!(f[1] > 5.0 && f[1] < 20.0, "force {f:?}");
+}
+
+#[test]
+fn switching_solver_and_energy_keeps_the_state_and_the_grab() {
+    let mut app = App::case("case-a").unwrap();
+    assert!(app.grab_at(4.99, 0.5, 0.0).unwrap());
+    for k in 1..=10 {
+        app.drag_to(4.99, 0.5 + 0.05 * k as f64).unwrap();
+        frames(&mut app, 1);
+    }
+    let t = app.state().t;
+    let x = app.state().x.clone();
+    for (key, value, names) in [
+        ("solver.kind", "\"xpbd\"", ("stvk", "xpbd")),
+        ("energy", "\"neo-hookean\"", ("neo-hookean", "xpbd")),
+        ("solver.kind", "\"vbd\"", ("neo-hookean", "vbd")),
+        ("material.youngs_modulus", "5000.0", ("neo-hookean", "vbd")),
+    ] {
+        let restarted = app.set(key, value).unwrap();
+        assert!(!restarted, "{key}");
+        assert_eq!(app.names(), names);
+        assert_eq!(app.state().t, t);
+        assert_eq!(app.state().x, x);
+    }
+    // The grab survived: stepping on keeps the tip at the hand.
+    frames(&mut app, 5);
+    assert!(app.hud().grab_force.is_some());
+    assert!(app.state().t > t);
+    // A mesh change restarts the scene (and lets go).
+    assert!(app.set("mesh.nx", "10").unwrap());
+    assert_eq!(app.state().t, 0.0);
+    assert!(app.hud().grab_force.is_none());
+}
+
+#[test]
+fn bad_settings_and_scenes_are_one_line_errors_that_change_nothing() {
+    let mut app = App::case("case-a").unwrap();
+    frames(&mut app, 2);
+    let before = app.state().digest();
+    let e = app.set("solver.dt", "-1.0").unwrap_err();
+    assert!(
+        e.starts_with("built-in case-a: solver.dt = -1"),
+        "message: {e}"
+    );
+    assert!(!e.contains('\n'));
+    let e = app.set("energy", "\"rubber\"").unwrap_err();
+    assert!(e.contains("rubber"), "{e}");
+    assert_eq!(app.state().digest(), before);
+    assert_eq!(app.names(), ("stvk", "explicit"));
+    frames(&mut app, 1);
+    // A dropped scene with an error, and one naming a file the page was not given.
+    let e = App::scene("energy = 3", "dropped.toml", MemoryFiles::default())
+        .err()
+        .unwrap();
+    assert!(e.starts_with("dropped.toml: "), "{e}");
+    assert!(!e.contains('\n'));
+    let text = "name = \"dropped\"\n[mesh]\nkind = \"file\"\npath = \"body.json\"\n[solver]\nkind = \"explicit\"\ndt = 1e-3\nsteps = 10\n[material]\nyoungs_modulus = 1000.0\npoisson_ratio = 0.3\ndensity = 1.0\n";
+    let e = App::scene(text, "dropped.toml", MemoryFiles::default())
+        .err()
+        .unwrap();
+    assert!(e.contains("body.json"), "{e}");
+    let e = App::case("case-z").err().unwrap();
+    assert!(e.contains("case-a"), "{e}");
+}
+
+#[test]
+fn a_dropped_mesh_json_is_read_from_memory() {
+    let mesh = "{\"vertices\": [[0,0],[1,0],[1,1],[0,1]], \"triangles\": [[0,1,2],[0,2,3]]}";
+    let mut files = MemoryFiles::default();
+    files.insert("square.json", mesh.as_bytes().to_vec());
+    let text = "name = \"dropped\"\ngravity = [0.0, -9.8]\n[mesh]\nkind = \"file\"\npath = \"square.json\"\n[solver]\nkind = \"xpbd\"\ndt = 0.01\nsteps = 10\n[material]\nyoungs_modulus = 1000.0\npoisson_ratio = 0.3\ndensity = 1.0\n";
+    let mut app = App::scene(text, "dropped.toml", files).unwrap();
+    assert_eq!(app.triangles().len(), 2);
+    frames(&mut app, 3);
+    assert!(app.positions()[0].y < 0.0, "it falls");
+}
+
+#[test]
+fn a_blow_up_stops_with_the_command_line_message_and_reset_recovers() {
+    let mut app = App::case("case-a").unwrap();
+    // Explicit at 20 ms is far past case A's stability limit (about 2 ms).
+    app.set("solver.dt", "0.02").unwrap();
+    let mut failed = None;
+    for _ in 0..500 {
+        let want = app.begin_frame(1.0 / 60.0);
+        if let Err(e) = app.step(want) {
+            failed = Some(e);
+            break;
+        }
+        app.end_frame(want, 1.0, 1.0 / 60.0);
+    }
+    let e = failed.expect("explicit at 20 ms blows up");
+    assert!(e.starts_with("built-in case-a: "), "{e}");
+    assert!(e.contains("non-finite") || e.contains("not finite"), "{e}");
+    assert_eq!(app.hud().error.as_deref(), Some(e.as_str()));
+    assert_eq!(
+        app.begin_frame(1.0 / 60.0),
+        0,
+        "a stopped run wants no steps"
+    );
+    assert!(app.step(1).is_err());
+    app.set("solver.dt", "0.001").unwrap();
+    app.reset();
+    assert!(app.hud().error.is_none());
+    assert_eq!(app.state().t, 0.0);
+    frames(&mut app, 3);
+    assert!(app.state().t > 0.0);
+}
+
+/// The app steps a scene exactly as `fem-scene` builds and steps it.
+#[test]
+fn the_app_steps_exactly_as_the_scene_crate() {
+    for case in ["case-a", "case-d"] {
+        let mut app = App::case(case).unwrap();
+        let want = app.begin_frame(0.05);
+        app.step(want).unwrap();
+        let scene = load_case(case, &[]).unwrap();
+        let mesh = build_mesh(&scene, &fem_scene::build::NoFiles).unwrap();
+        let e = energy(&scene).unwrap();
+        let digest = dispatch_energy!(e, e => {
+            let model = build_model(&scene, mesh, e).unwrap();
+            let mut stepper = build_stepper(&scene, &model).unwrap();
+            let mut state = initial_state(&scene, &model).unwrap();
+            for _ in 0..want {
+                stepper.step(&model, &mut state).unwrap();
+            }
+            state.digest()
+        });
+        assert_eq!(app.state().digest(), digest, "{case}");
+    }
+}
