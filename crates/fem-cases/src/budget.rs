@@ -332,6 +332,7 @@ fn record(scene: &LoadedScene, every: u64) -> Result<(RunResult, Trajectory), Sc
                 progress: None,
                 sinks: vec![&mut rec],
                 snapshot_every: None,
+                drag: None,
             };
             run(&scene, &mut env)?
         };

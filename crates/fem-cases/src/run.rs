@@ -51,6 +51,8 @@ pub struct RunOptions {
     /// Also write the recorded frames as VTK files, `vtk/run.pvd` and one `vtk/run_NNNNNN.vtu`
     /// per frame, in the output directory (ignored without one).
     pub vtk: bool,
+    /// A recorded drag to replay into the run (`fem2d run --drag FILE`).
+    pub drag: Option<fem_scene::drag::DragTrajectory>,
 }
 
 /// The system's monotonic clock.
@@ -145,6 +147,7 @@ fn run_in_pool(
         progress: progress.map(|p| -> &mut dyn Progress { p }),
         sinks,
         snapshot_every: options.snapshot_every,
+        drag: options.drag.as_ref(),
     };
     let outcome = run(scene, &mut env);
     drop(env);

@@ -11,7 +11,9 @@
 //!   through `fem-mesh`), a [`fem_solvers::Model`], the probes and the stepper (any solver of
 //!   the registry, [`fem_solvers::SolverKind`]);
 //! - [`run`]: the step loop with the per-frame numbers (stress, peaks, probes, runaway check)
-//!   and the [`run::Summary`].
+//!   and the [`run::Summary`];
+//! - [`drag`]: a recorded drag (grab, move, release at simulated times), replayed into a run
+//!   as the interactive app records it.
 //!
 //! What the caller supplies, behind small traits in [`run`]: a [`run::Clock`] (or none), a
 //! [`run::Progress`] report, [`run::FrameSink`]s that receive every recorded frame (files,
@@ -33,6 +35,7 @@
 
 pub mod build;
 pub mod cases;
+pub mod drag;
 pub mod error;
 pub mod run;
 pub mod scene;

@@ -35,6 +35,7 @@ use crate::build::{
     MeshSource, NoFiles, Probe, build_mesh, build_model, build_stepper, energy, initial_state,
     resolve_probes, von_mises_formula,
 };
+use crate::drag::{DragPlayer, DragTrajectory};
 use crate::error::SceneError;
 use crate::scene::LoadedScene;
 
@@ -105,6 +106,8 @@ pub struct RunEnv<'a> {
     /// Keep every `n`-th recorded frame in memory as a [`Snapshot`] (for pictures and
     /// animations), and always the last one. `None`: keep none.
     pub snapshot_every: Option<usize>,
+    /// A hand's recorded drag, replayed into the run ([`crate::drag`]).
+    pub drag: Option<&'a DragTrajectory>,
 }
 
 impl Default for RunEnv<'_> {
@@ -115,6 +118,7 @@ impl Default for RunEnv<'_> {
             progress: None,
             sinks: Vec::new(),
             snapshot_every: None,
+            drag: None,
         }
     }
 }
@@ -455,7 +459,7 @@ fn run_with<E: Energy>(
     energy: E,
 ) -> Result<RunResult, SceneError> {
     let s = &scene.scene;
-    let model = build_model(scene, mesh, energy)?;
+    let mut model = build_model(scene, mesh, energy)?;
     let mut stepper = build_stepper(scene, &model)?;
     let probes = resolve_probes(scene, model.mesh());
     let time_step_warning = stepper.time_step_warning();
@@ -478,7 +482,7 @@ fn run_with<E: Energy>(
     let outcome = step_loop(
         scene,
         env,
-        &model,
+        &mut model,
         &mut stepper,
         &mut state,
         &mut rec,
@@ -589,12 +593,13 @@ fn run_with<E: Energy>(
 fn step_loop<E: Energy>(
     scene: &LoadedScene,
     env: &mut RunEnv<'_>,
-    model: &Model<E>,
+    model: &mut Model<E>,
     stepper: &mut AnyStepper,
     state: &mut State,
     rec: &mut Recorder,
     probes: &[Probe],
 ) -> Result<Outcome, SceneError> {
+    let mut drag = env.drag.map(DragPlayer::new);
     let s = &scene.scene;
     let caps = stepper.kind().capabilities();
     let load_stepping = caps.clock == SolverClock::LoadFactor;
@@ -634,8 +639,15 @@ fn step_loop<E: Energy>(
         let t0 = clock.seconds();
         let mut failed: Option<SolverError> = None;
         for _ in 0..chunk {
+            if let Some(d) = drag.as_mut() {
+                d.apply(model, state)?;
+            }
+            let t_before = state.t;
             match stepper.step(model, state) {
                 Ok(report) => {
+                    if let Some(d) = drag.as_ref() {
+                        d.after_step(state, state.t - t_before);
+                    }
                     min_det_f = min_det_f.min(report.min_det_f);
                     inverted = inverted.max(report.inverted);
                     if caps.implicit {

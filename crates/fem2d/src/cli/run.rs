@@ -11,6 +11,7 @@ use fem_cases::pictures::{
     FieldKind, FramePicture, GifOptions, shared_range, style, time_label, write_gif,
 };
 use fem_cases::run::{RunOptions, run_scene_with};
+use fem_scene::drag::DragTrajectory;
 use fem_scene::run::Progress;
 use fem_solvers::Clock;
 
@@ -82,6 +83,10 @@ pub struct RunArgs {
     /// det F per element).
     #[arg(long)]
     pub vtk: bool,
+    /// Replay a recorded drag (the JSON the interactive app saves: grab, move and release at
+    /// simulated times; docs/interactive.md) into the run.
+    #[arg(long, value_name = "FILE")]
+    pub drag: Option<PathBuf>,
 }
 
 /// The overrides of the common flags, then the user's `--set`s.
@@ -130,6 +135,15 @@ pub fn run(args: &RunArgs) -> Result<(), String> {
         ));
     }
     let scene = load_case_or_file(&args.scene.scene, &overrides).map_err(|e| e.to_string())?;
+    let drag = match &args.drag {
+        None => None,
+        Some(path) => {
+            let name = path.display().to_string();
+            let text = std::fs::read_to_string(path)
+                .map_err(|e| format!("{name}: cannot read the drag file: {e}"))?;
+            Some(DragTrajectory::parse(&text, &name).map_err(|e| e.to_string())?)
+        }
+    };
     let s = &scene.scene;
     let recorded = s.planned_frames();
     let gif_every = args
@@ -160,6 +174,7 @@ pub fn run(args: &RunArgs) -> Result<(), String> {
             threads: args.threads,
             snapshot_every,
             vtk: args.vtk,
+            drag,
         },
         if args.quiet { None } else { Some(&mut bar) },
     )
