@@ -29,8 +29,9 @@ use fem_scene::build::{
     MeshSource, build_mesh, build_model, build_stepper, energy, initial_state, von_mises_formula,
 };
 use fem_scene::cases::{case_text, load_case};
+use fem_scene::drag::{DragAction, DragEvent, DragPlayer, DragTrajectory, Hand, Held};
 use fem_scene::scene::{LoadedScene, Scene, parse_scene};
-use fem_solvers::{AnyStepper, Clock, Grab, GrabModel, Model, State, Stepper};
+use fem_solvers::{AnyStepper, BodyState, Clock, Grab, Model, State, Stepper};
 
 /// The most simulated time one frame may owe, s: a frame after a long pause (a hidden tab,
 /// a breakpoint) does not ask for more.
@@ -138,6 +139,14 @@ pub struct App {
     hud: Hud,
     /// Steps the current frame wants.
     wanted: u64,
+    /// The hand's events since recording started.
+    recording: Option<DragTrajectory>,
+    /// A drag being replayed.
+    player: Option<DragPlayer>,
+    /// The pointer's hand.
+    hand: Hand,
+    /// The obstacles' poses at the start of the current step.
+    before: Vec<BodyState>,
 }
 
 /// The scene keys whose change restarts the scene (the mesh, what holds it, where it starts).
@@ -181,6 +190,10 @@ impl App {
             grab: None,
             hud: Hud::default(),
             wanted: 0,
+            recording: None,
+            player: None,
+            hand: Hand::default(),
+            before: Vec::new(),
         };
         app.refresh();
         Ok(app)
@@ -222,6 +235,7 @@ impl App {
             }
         } else {
             self.grab = None;
+            self.hand = Hand::default();
         }
         self.overrides = overrides;
         self.formula = von_mises_formula(&scene);
@@ -245,6 +259,8 @@ impl App {
             self.state = state;
         }
         self.grab = None;
+        self.player = None;
+        self.hand = Hand::default();
         self.hud = Hud::default();
         self.refresh();
     }
@@ -277,7 +293,24 @@ impl App {
             return Err(e.clone());
         }
         for k in 0..n {
-            if let Err(e) = self.stepper.step(&self.model, &mut self.state) {
+            if let Some(p) = self.player.as_mut() {
+                if let Err(e) = p.apply(&mut self.model, &self.state) {
+                    self.hud.error = Some(e.to_string());
+                    return Err(e.to_string());
+                }
+                self.grab = self.model.active_grab();
+            }
+            self.before.clone_from(&self.state.bodies);
+            let t = self.state.t;
+            let stepped = self.stepper.step(&self.model, &mut self.state);
+            if stepped.is_ok() {
+                let dt = self.state.t - t;
+                self.hand.after_step(&mut self.state, &self.before, dt);
+                if let Some(p) = self.player.as_ref() {
+                    p.after_step(&mut self.state, dt);
+                }
+            }
+            if let Err(e) = stepped {
                 let message = format!("{}: {e}", self.scene.origin);
                 self.hud.error = Some(message.clone());
                 self.refresh();
@@ -307,90 +340,73 @@ impl App {
         self.refresh();
     }
 
-    /// Grab the body at the world point `(x, y)`: inside a triangle, its three vertices
-    /// weighted by the point's barycentric coordinates; else the nearest vertex within 5 % of
-    /// the body's size. `stiffness` > 0 makes a spring grab (N/m), else a pin. Whether
-    /// something was grabbed.
+    /// Grab what is at the world point `(x, y)` ([`Hand::grab`]): a rigid obstacle there
+    /// (held by the hand), else the body ([`fem_scene::drag::pick`]: inside a triangle, its
+    /// three vertices weighted by the point's barycentric coordinates; else the nearest vertex
+    /// within 5 % of the body's size). `stiffness` > 0 makes a spring grab of the body (N/m),
+    /// else a pin. Whether something was grabbed. Recorded when recording.
     pub fn grab_at(&mut self, x: Real, y: Real, stiffness: Real) -> Result<bool, String> {
-        let p = Vec2::new(x, y);
-        let Some(anchor) = self.pick(p) else {
-            return Ok(false);
-        };
-        let model = if stiffness > 0.0 {
-            GrabModel::Spring { stiffness }
-        } else {
-            GrabModel::Pin
-        };
-        let grab = Grab {
-            anchor,
-            target: p,
-            model,
-        };
-        match self.model.grab(&grab, &self.state.x) {
-            Ok(_) => {
-                // The target is the anchor point, so grabbing pulls nothing yet.
-                let point = self.model.grab_point(&self.state.x).unwrap_or(p);
-                self.model.move_grab(point).map_err(|e| e.to_string())?;
-                self.grab = self.model.active_grab();
-                self.refresh();
-                Ok(true)
-            }
-            // Only pinned or moved vertices under the pointer: nothing to hold.
-            Err(_) => Ok(false),
-        }
+        let grabbed = self
+            .hand
+            .grab(&mut self.model, &self.state, Vec2::new(x, y), stiffness)
+            .map_err(|e| e.to_string())?;
+        self.record(DragAction::Grab { x, y, stiffness });
+        self.grab = self.model.active_grab();
+        self.refresh();
+        Ok(grabbed)
     }
 
-    /// Move the hand to `(x, y)`.
+    /// Move the hand to `(x, y)`. Recorded when recording.
     pub fn drag_to(&mut self, x: Real, y: Real) -> Result<(), String> {
-        if self.grab.is_none() {
+        if self.hand.held == Held::Nothing {
             return Ok(());
         }
-        self.model
-            .move_grab(Vec2::new(x, y))
+        self.record(DragAction::Move { x, y });
+        self.hand
+            .move_to(&mut self.model, Vec2::new(x, y))
             .map_err(|e| e.to_string())?;
         self.grab = self.model.active_grab();
         Ok(())
     }
 
-    /// Let go.
+    /// Let go. Recorded when recording.
     pub fn release(&mut self) {
-        self.model.release();
+        if self.hand.held != Held::Nothing {
+            self.record(DragAction::Release);
+        }
+        self.hand.release(&mut self.model);
         self.grab = None;
         self.hud.grab_force = None;
     }
 
-    /// The anchor under `p`: a triangle's vertices with barycentric weights, or the nearest
-    /// vertex within 5 % of the body's size.
-    fn pick(&self, p: Vec2) -> Option<Vec<(usize, Real)>> {
-        let x = &self.state.x;
-        for tri in self.mesh.triangles() {
-            let [a, b, c] = tri.map(|i| x[i as usize]);
-            let d = (b - a).perp(&(c - a));
-            if d == 0.0 {
-                continue;
-            }
-            let wb = (p - a).perp(&(c - a)) / d;
-            let wc = (b - a).perp(&(p - a)) / d;
-            let wa = 1.0 - wb - wc;
-            // A point on a shared edge belongs to either triangle; round-off must not leave
-            // it in neither.
-            let eps = -1e-12;
-            if wa >= eps && wb >= eps && wc >= eps {
-                return Some(vec![
-                    (tri[0] as usize, wa.max(0.0)),
-                    (tri[1] as usize, wb.max(0.0)),
-                    (tri[2] as usize, wc.max(0.0)),
-                ]);
-            }
+    /// What the hand holds.
+    pub fn held(&self) -> Held {
+        self.hand.held
+    }
+
+    /// Start recording the hand (a new recording; the clock as it is).
+    pub fn start_recording(&mut self) {
+        self.recording = Some(DragTrajectory::default());
+    }
+
+    /// Stop recording; the drag recorded (empty when none was).
+    pub fn stop_recording(&mut self) -> DragTrajectory {
+        self.recording.take().unwrap_or_default()
+    }
+
+    /// Restart the scene and replay `drag` into it as the steps reach its events' times
+    /// (the pointer is still free to grab). Replays are repeatable: the same settings and the
+    /// same drag give the same states, as `fem2d run --drag` does offline.
+    pub fn replay(&mut self, drag: &DragTrajectory) {
+        self.reset();
+        self.player = Some(DragPlayer::new(drag));
+    }
+
+    fn record(&mut self, action: DragAction) {
+        let t = self.state.t;
+        if let Some(r) = self.recording.as_mut() {
+            r.events.push(DragEvent { t, action });
         }
-        let (lo, hi) = self.bounds();
-        let reach = 0.05 * ((hi[0] - lo[0]).hypot(hi[1] - lo[1]));
-        x.iter()
-            .enumerate()
-            .map(|(i, q)| (i, (q - p).norm()))
-            .filter(|&(_, d)| d <= reach)
-            .min_by(|a, b| a.1.total_cmp(&b.1))
-            .map(|(i, _)| vec![(i, 1.0)])
     }
 
     /// Recompute the stress and the display numbers of the current state.

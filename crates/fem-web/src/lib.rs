@@ -20,3 +20,4 @@ pub mod app;
 mod wasm;
 
 pub use app::{App, Field, Hud, MemoryFiles};
+pub use fem_scene::drag::Held;

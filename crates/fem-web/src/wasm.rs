@@ -346,6 +346,40 @@ pub extern "C" fn names() {
     );
 }
 
+/// Start recording the hand.
+#[unsafe(no_mangle)]
+pub extern "C" fn record_start() {
+    with_app(App::start_recording, ());
+}
+
+/// Stop recording; the recorded drag's JSON into the text buffer.
+#[unsafe(no_mangle)]
+pub extern "C" fn record_stop() {
+    with_app(|app| set_text(&app.stop_recording().to_json()), ());
+}
+
+/// Restart the scene and replay the drag whose JSON is the input (named by its first
+/// `name_len` bytes in messages). 0, or 1 with the message in the text buffer.
+#[unsafe(no_mangle)]
+pub extern "C" fn replay(name_len: usize) -> u32 {
+    let all = input_string();
+    let n = name_len.min(all.len());
+    let (name, json) = all.split_at(n);
+    status(
+        fem_scene::drag::DragTrajectory::parse(json, name)
+            .map_err(|e| e.to_string())
+            .and_then(|drag| {
+                with_app(
+                    |app| {
+                        app.replay(&drag);
+                        Ok(())
+                    },
+                    Err("no scene is loaded".to_owned()),
+                )
+            }),
+    )
+}
+
 /// The names the page offers, into the text buffer: the built-in cases, the energies and the
 /// solvers of the registry, as three lines of space-separated names (so a solver added to
 /// the registry appears in the page without page code).

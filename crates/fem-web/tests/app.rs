@@ -48,13 +48,14 @@ fn a_pinned_grab_carries_the_tip_and_the_stress_rises_there() {
         .position(|p| p.x == 5.0 && p.y == 0.5)
         .unwrap();
     let vm_before = app.field(Field::VonMises);
-    assert!(
-        app.grab_at(4.99, 0.5, 0.0).unwrap(),
-        "a point on the body grabs"
-    );
+    // A press far off grabs nothing (and a press lets go of what the hand held before).
     assert!(
         !app.grab_at(50.0, 50.0, 0.0).unwrap(),
         "a point far off grabs nothing"
+    );
+    assert!(
+        app.grab_at(4.99, 0.5, 0.0).unwrap(),
+        "a point on the body grabs"
     );
     // Dragging up 1 m over 30 frames (the hand moves each frame).
     for k in 1..=30 {
@@ -221,4 +222,90 @@ fn the_app_steps_exactly_as_the_scene_crate() {
         });
         assert_eq!(app.state().digest(), digest, "{case}");
     }
+}
+
+/// A drag recorded in the app replays to the same state in the app and, offline, in
+/// `fem-scene`'s run (what `fem2d run --drag` does), bit for bit.
+#[test]
+fn a_recorded_drag_replays_the_same_in_the_app_and_offline() {
+    let mut app = App::case("case-a").unwrap();
+    frames(&mut app, 3);
+    app.reset();
+    app.start_recording();
+    frames(&mut app, 2);
+    assert!(app.grab_at(4.9, 0.55, 0.0).unwrap());
+    for k in 1..=20 {
+        app.drag_to(4.9 - 0.01 * k as f64, 0.55 + 0.04 * k as f64)
+            .unwrap();
+        frames(&mut app, 1);
+    }
+    app.release();
+    frames(&mut app, 5);
+    let drag = app.stop_recording();
+    assert_eq!(drag.events.len(), 22, "grab, 20 moves, release");
+    let steps = app.state().step;
+    let live = app.state().digest();
+    let live_x = app.state().x.clone();
+
+    // Replayed in the app, from a reset.
+    app.replay(&drag);
+    assert_eq!(app.state().t, 0.0);
+    app.step(steps).unwrap();
+    assert_eq!(app.state().digest(), live, "replay in the app");
+
+    // Offline, through the JSON form.
+    let parsed = fem_scene::drag::DragTrajectory::parse(&drag.to_json(), "drag.json").unwrap();
+    assert_eq!(parsed, drag);
+    let scene = load_case("case-a", &[format!("solver.steps={steps}")]).unwrap();
+    let mut env = fem_scene::run::RunEnv {
+        drag: Some(&parsed),
+        ..fem_scene::run::RunEnv::default()
+    };
+    let result = fem_scene::run::run(&scene, &mut env).unwrap();
+    let offline: Vec<[f64; 2]> = live_x.iter().map(|p| [p.x, p.y]).collect();
+    assert_eq!(result.final_positions, offline, "offline run");
+}
+
+/// Case D's debris can be grabbed and pushed: held by the hand, it sits where the hand holds
+/// it after every step, moves with the hand's velocity, and pressing it onto the leg raises
+/// the stress there; released, it falls on its own.
+#[test]
+fn the_debris_can_be_grabbed_and_pushed_onto_the_leg() {
+    let mut app = App::case("case-d").unwrap();
+    let centre = |app: &App| {
+        let poly = &app.obstacles()[0];
+        poly.iter()
+            .fold(fem_core::math::Vec2::zeros(), |a, p| a + p)
+            / poly.len() as f64
+    };
+    let c0 = centre(&app);
+    assert!(app.grab_at(c0.x, c0.y + 0.05, 0.0).unwrap());
+    assert!(matches!(
+        app.held(),
+        fem_web::Held::Obstacle { index: 0, .. }
+    ));
+    // Lift it a little, hold it up for a while: it does not fall.
+    app.drag_to(c0.x, c0.y + 0.1).unwrap();
+    frames(&mut app, 10);
+    let c = centre(&app);
+    assert!(
+        (c - (c0 + fem_core::math::Vec2::new(0.0, 0.05))).norm() < 1e-9,
+        "{c:?}"
+    );
+    let body = app.state().bodies[0];
+    assert!(
+        body.velocity.norm() < 1e-9,
+        "held still: {:?}",
+        body.velocity
+    );
+    let calm = app.hud().peak_von_mises;
+    // Push it down onto the leg, 3 cm below where it started, over 20 frames.
+    for k in 1..=20 {
+        app.drag_to(c0.x, c0.y + 0.05 - 0.004 * k as f64).unwrap();
+        frames(&mut app, 1);
+    }
+    let pushed = app.hud().peak_von_mises;
+    assert!(pushed > 2.0 * calm, "peak von Mises {calm} -> {pushed} Pa");
+    app.release();
+    assert_eq!(app.held(), fem_web::Held::Nothing);
 }

@@ -4,7 +4,10 @@
 // - the grabbed vertex followed the pointer (a pinned grab: it sits under the pointer),
 // - the stress next to it rose and the heads-up display shows the grab force,
 // - switching solver mid-drag keeps the run going (frames and simulated time advance),
-// - releasing lets the tip fall back, and the console has no error.
+// - releasing lets the tip fall back,
+// - side by side: a second pane (another solver) follows the same drag,
+// - a recorded drag replays in every pane from the start,
+// - and the console has no error.
 // Then it measures case D in real time (the page's own counters) and saves a screenshot.
 //
 //   node drag.mjs SITE_DIR [SCREENSHOT.png]   (run by `cargo xtask web --browser-test`)
@@ -55,7 +58,7 @@ try {
     page.evaluate(
       ([wx, wy]) => {
         const v = window.fem.view;
-        const r = document.getElementById("c").getBoundingClientRect();
+        const r = window.fem.canvas(0).getBoundingClientRect();
         return [r.left + (v.ox + v.scale * wx) / v.dpr, r.top + (v.oy - v.scale * wy) / v.dpr];
       },
       [wx, wy],
@@ -64,20 +67,23 @@ try {
     page.evaluate(
       ([sx, sy]) => {
         const v = window.fem.view;
-        const r = document.getElementById("c").getBoundingClientRect();
+        const r = window.fem.canvas(0).getBoundingClientRect();
         return [((sx - r.left) * v.dpr - v.ox) / v.scale, (v.oy - (sy - r.top) * v.dpr) / v.scale];
       },
       [sx, sy],
     );
-  const state = () =>
-    page.evaluate(() => ({
-      x: Array.from(window.fem.positions()),
-      vm: Array.from(window.fem.field(0)),
-      hud: Array.from(window.fem.hud()),
-      frames: window.fem.frames,
-      names: window.fem.names(),
-      errors: window.fem.errors.slice(),
-    }));
+  const state = (pane = 0) =>
+    page.evaluate(
+      (i) => ({
+        x: Array.from(window.fem.positions(i)),
+        vm: Array.from(window.fem.field(0, i)),
+        hud: Array.from(window.fem.hud(i)),
+        frames: window.fem.frames,
+        names: window.fem.names(i),
+        errors: window.fem.errors.slice(),
+      }),
+      pane,
+    );
   const frames = (n) =>
     page.evaluate(
       (n) =>
@@ -103,7 +109,7 @@ try {
     await frames(1);
     if (k === 15) {
       // Mid-drag: switch the solver, as a user would with the select box.
-      await page.select("#solver", "xpbd");
+      await page.select(".pane:nth-child(1) .solver", "xpbd");
     }
   }
   await frames(5);
@@ -117,11 +123,7 @@ try {
   check(s.hud[12] === 1, `the grab force is shown (${s.hud[13].toFixed(2)}, ${s.hud[14].toFixed(2)} N)`);
   const near = [];
   // Triangles touching the tip: the stress there rose.
-  const tris = await page.evaluate(() => Array.from(window.fem.exports.triangles ? (() => {
-    const x = window.fem.exports;
-    const p = x.triangles();
-    return new Uint32Array(x.memory.buffer, p, x.out_len()).slice();
-  })() : []));
+  const tris = await page.evaluate(() => window.fem.triangles(0));
   for (let t = 0; t < tris.length / 3; t++) {
     if ([tris[3 * t], tris[3 * t + 1], tris[3 * t + 2]].includes(tip)) near.push(t);
   }
@@ -138,18 +140,116 @@ try {
   s = await state();
   check(s.x[2 * tip + 1] < gy, "released, the tip falls back");
   check(s.hud[12] === 0, "released, no grab force");
+
+  // Side by side: a second pane, under VBD, follows the same hand.
+  await page.click("#addpane");
+  await page.waitForFunction(() => window.fem.panes.length === 2);
+  await page.select(".pane:nth-child(2) .solver", "vbd");
+  await frames(30);
+  // Where the tip is now, on the narrower canvas.
+  const now = await state(0);
+  const [qx, qy] = await screenOf(now.x[2 * tip] - 0.02, now.x[2 * tip + 1]);
+  await page.mouse.move(qx, qy);
+  await page.mouse.down();
+  for (let k = 1; k <= 20; k++) {
+    await page.mouse.move(qx, qy - (rise * k) / 20);
+    await frames(1);
+  }
+  await frames(5);
   if (screenshot) {
-    // The picture for docs/interactive.md: drag again and shoot mid-drag.
-    await page.mouse.move(px, py);
-    await page.mouse.down();
-    for (let k = 1; k <= 20; k++) {
-      await page.mouse.move(px - k, py - (rise * k) / 20);
-      await frames(1);
-    }
+    // The picture for docs/interactive.md: two solvers under one hand, mid-drag.
     await page.screenshot({ path: screenshot });
-    await page.mouse.up();
     console.log(`screenshot: ${screenshot}`);
   }
+  const one = await state(0);
+  const two = await state(1);
+  const [wx, wy] = await worldOf(qx, qy - rise);
+  // Pane 1 was grabbed at its tip; pane 2's body (another solver) lies a little elsewhere, so
+  // the same world point holds a point near its tip.
+  for (const [i, st, tol] of [[1, one, 0.05], [2, two, 0.3]]) {
+    const d = Math.hypot(st.x[2 * tip] - wx, st.x[2 * tip + 1] - wy);
+    check(d < tol && st.hud[12] === 1, `pane ${i} (${st.names}): the tip is at the hand (${d.toFixed(4)} m off), grab force shown`);
+  }
+  await page.mouse.up();
+
+  // Record a drag in the page, then replay it: every pane restarts and follows it again.
+  await frames(30);
+  await page.click("#record");
+  // Grab well inside the body, next to where the tip is right now.
+  const again = await state(0);
+  const [rx, ry] = await screenOf(again.x[2 * tip] - 0.15, again.x[2 * tip + 1]);
+  await page.mouse.move(rx, ry);
+  await page.mouse.down();
+  for (let k = 1; k <= 10; k++) {
+    await page.mouse.move(rx, ry - (rise * k) / 10);
+    await frames(1);
+  }
+  await page.mouse.up();
+  await page.click("#record");
+  const drag = await page.evaluate(() => window.fem.lastDrag);
+  const events = JSON.parse(drag).events;
+  check(events.length >= 10 && events[0].action === "grab", `a drag was recorded (${events.length} events)`);
+  await page.evaluate((d) => window.fem.replay("drag.json", d), drag);
+  const restarted = await page.evaluate(() => [window.fem.hud(0)[0], window.fem.hud(1)[0]]);
+  check(restarted[0] < 0.05 && restarted[1] < 0.05, `the replay restarts every pane (t = ${restarted.map((t) => t.toFixed(3))})`);
+  await frames(40);
+  const replayed = await page.evaluate(() => [window.fem.hud(0), window.fem.hud(1)].map((h) => Array.from(h)));
+  check(replayed.every((h) => h[12] === 1 || h[0] > 0.3), "the replayed drag grabs in every pane");
+  await page.evaluate(() => window.fem.panes.length > 1 && document.querySelector(".pane:nth-child(2) .remove").click());
+
+  // Touch works as the mouse: a finger drags the tip of a fresh case A.
+  await page.select("#case", "case-a");
+  await frames(5);
+  await page.evaluate(() => window.fem.exports.reset());
+  await frames(2);
+  const before = await state(0);
+  const [fx, fy] = await screenOf(before.x[2 * tip] - 0.15, before.x[2 * tip + 1]);
+  const client = await page.target().createCDPSession();
+  const touch = (type, points) =>
+    client.send("Input.dispatchTouchEvent", {
+      type,
+      touchPoints: points.map(([x, y]) => ({ x, y, id: 1 })),
+    });
+  await touch("touchStart", [[fx, fy]]);
+  for (let k = 1; k <= 10; k++) {
+    await touch("touchMove", [[fx, fy - 8 * k]]);
+    await frames(1);
+  }
+  await frames(3);
+  const after = await state(0);
+  const lift = after.x[2 * tip + 1] - before.x[2 * tip + 1];
+  check(after.hud[12] === 1 && lift > 0.3, `a finger drags the tip (it rose ${lift.toFixed(3)} m)`);
+  await touch("touchEnd", []);
+
+  // About 10,000 triangles under XPBD at dt = 1/60 s with 10 substeps of one iteration (the
+  // small-steps setting): the page's counters.
+  const big = await page.evaluate(async () => {
+    const ok =
+      window.fem.set("mesh.nx", "224") &&
+      window.fem.set("mesh.ny", "22") &&
+      window.fem.set("solver.kind", '"xpbd"') &&
+      window.fem.set("solver.dt", String(1 / 60)) &&
+      window.fem.set("solver.substeps", "10") &&
+      window.fem.set("solver.iterations", "1");
+    const rows = [];
+    let start = 0;
+    for (let i = 0; i < 90; i++) {
+      await new Promise((r) => requestAnimationFrame(r));
+      if (i === 30) start = performance.now();
+      if (i >= 30) rows.push(Array.from(window.fem.hud(0)));
+    }
+    const fps = (rows.length - 1) / ((performance.now() - start) / 1000);
+    const draw = window.fem.panes[0].drawMs;
+    return { ok, rows, fps, draw, triangles: window.fem.triangles(0).length / 3 };
+  });
+  check(big.ok, `the 10,000-triangle body loads (${big.triangles} triangles)`);
+  const bmean = (i) => big.rows.reduce((a, r) => a + r[i], 0) / big.rows.length;
+  console.log(
+    `${big.triangles} triangles, XPBD dt = 1/60 s x 10 substeps x 1 iteration: ${bmean(2).toFixed(2)} steps a frame ` +
+      `(of ${bmean(3).toFixed(2)} wanted), physics ${bmean(4).toFixed(2)} ms a frame, real-time factor ` +
+      `${bmean(5).toFixed(3)}, ${big.rows.filter((r) => r[6] === 1).length} of ${big.rows.length} frames slowed; ` +
+      `${big.fps.toFixed(1)} frames per second, drawing ${big.draw.toFixed(1)} ms a frame`,
+  );
 
   // Case D in real time (explicit Neo-Hookean at its own dt): the page's counters.
   await page.select("#case", "case-d");
@@ -169,6 +269,30 @@ try {
       `physics ${mean(4).toFixed(2)} ms a frame, real-time factor ${mean(5).toFixed(3)}, ` +
       `${slowed} of ${hud.length} frames slowed`,
   );
+  // The debris can be grabbed and lifted with the mouse.
+  const debris = async () => {
+    const sc = await page.evaluate(() => Array.from(window.fem.scenery(0)));
+    const n = sc[6];
+    let [cx, cy] = [0, 0];
+    for (let i = 0; i < n; i++) {
+      cx += sc[7 + 2 * i] / n;
+      cy += sc[8 + 2 * i] / n;
+    }
+    return [cx, cy];
+  };
+  const [dx, dy] = await debris();
+  const [sx, sy] = await screenOf(dx, dy);
+  await page.mouse.move(sx, sy);
+  await page.mouse.down();
+  for (let k = 1; k <= 10; k++) {
+    await page.mouse.move(sx, sy - 4 * k);
+    await frames(1);
+  }
+  await frames(3);
+  const [ex, ey] = await debris();
+  const [hx2, hy2] = await worldOf(sx, sy - 40);
+  check(Math.hypot(ex - hx2, ey - hy2) < 0.01, `the debris follows the hand (lifted ${(ey - dy).toFixed(3)} m)`);
+  await page.mouse.up();
   s = await state();
   check(s.errors.length === 0, `no error on the page (${s.errors.join("; ")})`);
 } finally {
