@@ -251,6 +251,20 @@ try {
       `${big.fps.toFixed(1)} frames per second, drawing ${big.draw.toFixed(1)} ms a frame`,
   );
 
+  // A blow-up shows the command line's one-line message on the page; reset recovers.
+  await page.select("#case", "case-a");
+  await frames(3);
+  await page.evaluate(() => window.fem.set("solver.kind", '"explicit"') && window.fem.set("solver.dt", "0.02"));
+  await page.waitForFunction(() => document.getElementById("error").textContent.includes("non-finite"), { timeout: 20000 });
+  const message = await page.evaluate(() => document.getElementById("error").textContent);
+  check(/^pane 1: built-in case-a: step \d+ .*non-finite/.test(message) && !message.includes("\n"), `a blow-up is one line on the page: ${message.slice(0, 90)}...`);
+  await page.evaluate(() => window.fem.set("solver.dt", "0.001"));
+  await page.click("#reset");
+  await frames(20);
+  const recovered = await state(0);
+  check(recovered.hud[15] === 0 && recovered.hud[0] > 0.1, `reset recovers (t = ${recovered.hud[0].toFixed(3)} s)`);
+  await page.evaluate(() => (window.fem.errors.length = 0));
+
   // Case D in real time (explicit Neo-Hookean at its own dt): the page's counters.
   await page.select("#case", "case-d");
   await frames(30);
