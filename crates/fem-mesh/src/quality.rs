@@ -4,7 +4,7 @@
 
 use std::fmt;
 
-use crate::types::{Mesh2, triangle_signed_area};
+use crate::types::{Mesh2, PolygonWithHoles, triangle_signed_area};
 
 /// Upper edges of the aspect-ratio histogram bins; the last bin is everything above.
 pub const ASPECT_BINS: [f64; 6] = [1.1, 1.25, 1.5, 2.0, 3.0, 5.0];
@@ -26,8 +26,14 @@ pub struct QualityReport {
     pub max_area: f64,
     /// Sum of the triangle areas (model units squared).
     pub mesh_area: f64,
-    /// Area of the polygon that was meshed, when known (model units squared).
+    /// Area of the shape the mesh should cover, when known (model units squared). The mesh
+    /// pipeline gives the alpha shape's, so the difference includes what simplification
+    /// removed.
     pub polygon_area: Option<f64>,
+    /// Hausdorff distance between the mesh's boundary and the boundary of the shape it should
+    /// cover, when known (model units; the pipeline's: simplified polygons against the alpha
+    /// shape).
+    pub boundary_hausdorff: Option<f64>,
     /// Triangles with non-positive signed area (clockwise or degenerate).
     pub non_positive_triangles: usize,
     /// Counts of triangles per aspect-ratio bin (bins in [`ASPECT_BINS`], plus one above).
@@ -81,6 +87,7 @@ impl QualityReport {
             max_area: 0.0,
             mesh_area: 0.0,
             polygon_area,
+            boundary_hausdorff: None,
             non_positive_triangles: 0,
             aspect_histogram: [0; ASPECT_BINS.len() + 1],
         };
@@ -106,6 +113,55 @@ impl QualityReport {
         }
         report
     }
+
+    /// The same report with the Hausdorff distance between the mesh's boundary and the
+    /// boundary of the shape it should cover (see [`boundary_hausdorff`]).
+    pub fn with_boundary_hausdorff(mut self, distance: f64) -> Self {
+        self.boundary_hausdorff = Some(distance);
+        self
+    }
+}
+
+/// Hausdorff distance between two sets of polygon boundaries (outer rings and holes): the
+/// largest distance from a point of either to the other, sampled at every vertex and at three
+/// interior points of every edge (model units).
+pub fn boundary_hausdorff(a: &[PolygonWithHoles], b: &[PolygonWithHoles]) -> f64 {
+    directed(a, b).max(directed(b, a))
+}
+
+fn rings(p: &[PolygonWithHoles]) -> impl Iterator<Item = &Vec<[f64; 2]>> {
+    p.iter()
+        .flat_map(|p| std::iter::once(&p.outer).chain(&p.holes))
+}
+
+fn directed(a: &[PolygonWithHoles], b: &[PolygonWithHoles]) -> f64 {
+    let mut worst: f64 = 0.0;
+    for ring in rings(a) {
+        for (i, &p) in ring.iter().enumerate() {
+            let q = ring[(i + 1) % ring.len()];
+            for k in 0..4 {
+                let s = k as f64 / 4.0;
+                let x = [p[0] + s * (q[0] - p[0]), p[1] + s * (q[1] - p[1])];
+                let d = rings(b)
+                    .flat_map(|r| (0..r.len()).map(move |j| (r[j], r[(j + 1) % r.len()])))
+                    .map(|(u, v)| segment_distance(x, u, v))
+                    .fold(f64::INFINITY, f64::min);
+                worst = worst.max(d);
+            }
+        }
+    }
+    worst
+}
+
+fn segment_distance(x: [f64; 2], u: [f64; 2], v: [f64; 2]) -> f64 {
+    let (dx, dy) = (v[0] - u[0], v[1] - u[1]);
+    let len2 = dx * dx + dy * dy;
+    let t = if len2 > 0.0 {
+        (((x[0] - u[0]) * dx + (x[1] - u[1]) * dy) / len2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    (x[0] - u[0] - t * dx).hypot(x[1] - u[1] - t * dy)
 }
 
 impl fmt::Display for QualityReport {
@@ -134,6 +190,12 @@ impl fmt::Display for QualityReport {
                 (self.mesh_area - p).abs() / p
             )?,
             _ => writeln!(f, "mesh area {:.6e}", self.mesh_area)?,
+        }
+        if let Some(h) = self.boundary_hausdorff {
+            writeln!(
+                f,
+                "boundary within {h:.3e} of the shape to cover (Hausdorff distance)"
+            )?;
         }
         if self.non_positive_triangles > 0 {
             writeln!(

@@ -197,3 +197,47 @@ mod serde_keys {
         );
     }
 }
+
+/// Regression (a stepper silently kept the model it was built for): a stepper built on a
+/// pinned cantilever and stepped with the unpinned beam of the same mesh uses the model it is
+/// given, for every solver: its state equals that of a stepper built on the unpinned model.
+#[test]
+fn a_stepper_uses_the_model_it_is_given_not_the_one_it_was_built_for() {
+    use fem_solvers::testing::beam_mesh;
+    use fem_solvers::{Model, Region, State};
+    let lame = case_a_lame();
+    let free = || {
+        Model::with_total_mass(beam_mesh(10, 2).unwrap(), Corotational::new(lame), 1.0)
+            .unwrap()
+            .with_standard_gravity()
+    };
+    let mut pinned = free();
+    pinned
+        .pin(&Region::in_box(
+            fem_core::math::Vec2::new(0.0, 0.0),
+            fem_core::math::Vec2::new(0.0, 1.0),
+        ))
+        .unwrap();
+    let unpinned = free();
+    for kind in SolverKind::ALL {
+        if kind.capabilities().clock != fem_solvers::Clock::Time {
+            // The static solver has no equilibrium without a pin.
+            continue;
+        }
+        let mut params = kind.default_params();
+        params.set_dt(1e-3);
+        let mut swapped = params.build(&pinned).unwrap();
+        let mut fresh = params.build(&unpinned).unwrap();
+        let (mut a, mut b) = (State::at_rest(&unpinned), State::at_rest(&unpinned));
+        for _ in 0..5 {
+            swapped.step(&unpinned, &mut a).unwrap();
+            fresh.step(&unpinned, &mut b).unwrap();
+        }
+        assert_eq!(
+            a.x, b.x,
+            "{kind}: the stepper used the model it was built for"
+        );
+        // Vertex 0 was pinned in the old model: it falls now.
+        assert!(a.x[0].y < 0.0, "{kind}");
+    }
+}
