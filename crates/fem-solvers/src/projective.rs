@@ -18,10 +18,10 @@
 //! `sum m/(2 h^2) |x - x_hat|^2 - f . x + sum_e a_e psi(F_e)` by local-global iterations from
 //! `x_hat + h^2 f / m`: the **local step** computes `p1, p2` per triangle (in parallel); the
 //! **global step** solves `(M / h^2 + L) x = M / h^2 x_hat + f + sum_e G_e^T (w1 p1 + w2 p2)`
-//! with `w1 = 2 a mu`, `w2 = 2 a lambda`, `L = sum_e (w1 + w2) G_e^T G_e` ([`PdSystem`]): one
-//! matrix for the whole run, factorised once when the stepper is built. Each iteration lowers
-//! the potential; it converges linearly to the implicit Euler step (`tests/suite/projective.rs`
-//! measures the gap against Newton's step).
+//! with `w1 = 2 a mu`, `w2 = 2 a lambda`, `L = sum_e (w1 + w2) G_e^T G_e` (`PdSystem`, in
+//! `pd_system.rs`): one matrix for the whole run, factorised once when the stepper is built.
+//! Each iteration lowers the potential; it converges linearly to the implicit Euler step
+//! (`tests/suite/projective.rs` measures the gap against Newton's step).
 //!
 //! Chebyshev (`chebyshev_rho`, 0 = off) extrapolates the free positions after each iteration
 //! as in [`crate::vbd`]; it does not change the fixed point, and a `rho` above the iterations'

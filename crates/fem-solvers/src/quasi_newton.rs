@@ -10,9 +10,9 @@
 //! - the direction `d = -H g` by L-BFGS's two-loop recursion over the last `history` pairs
 //!   `(s, y)` of position and gradient changes, with the initial inverse Hessian `A^-1`,
 //!   `A = M / h^2 + L` the Projective Dynamics matrix of the energy's Lamé parameters at rest
-//!   ([`PdSystem`]; for the co-rotational energy the exact PD matrix), factorised once when the
-//!   stepper is built, so an iteration costs a gradient, one or more potential evaluations and
-//!   two triangular solves;
+//!   (`PdSystem` in `pd_system.rs`; for the co-rotational energy the exact PD matrix),
+//!   factorised once when the stepper is built, so an iteration costs a gradient, one or more
+//!   potential evaluations and two triangular solves;
 //! - a backtracking (Armijo) line search: the step is halved until the potential is finite and
 //!   decreases enough, so a state that inverts a triangle of an energy forbidding inversion
 //!   (Neo-Hookean's `log J`) is never accepted;
