@@ -64,10 +64,10 @@ pub fn values(summary: &Value) -> Result<Value, String> {
 fn reals(a: &Value, b: &Value) -> Vec<(String, &'static str, f64, f64)> {
     let mut out = Vec::new();
     for (field, unit) in FIELDS {
-        if let (Some(x), Some(y)) = (a[field].as_f64(), b[field].as_f64()) {
-            if unit == "1" || unit == "Pa" || unit == "m" {
-                out.push((field.to_owned(), unit, x, y));
-            }
+        if let (Some(x), Some(y)) = (a[field].as_f64(), b[field].as_f64())
+            && (unit == "1" || unit == "Pa" || unit == "m")
+        {
+            out.push((field.to_owned(), unit, x, y));
         }
     }
     if let Some(probes) = a["probes"].as_object() {

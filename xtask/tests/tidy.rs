@@ -299,3 +299,55 @@ fn every_rust_file_opens_with_a_module_doc() {
         "these files do not open with a `//!` doc comment: {offenders:?}"
     );
 }
+
+/// The workspace's `rust-version` is a true minimum: at least every dependency's own (a
+/// consumer on an older compiler gets cargo's clear message, not a build failure deep in a
+/// dependency).
+#[test]
+fn rust_version_is_at_least_every_dependencys() {
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".to_owned());
+    let out = Command::new(cargo)
+        .args(["metadata", "--format-version", "1"])
+        .current_dir(root())
+        .output()
+        .expect("cargo metadata runs");
+    assert!(out.status.success());
+    let meta: serde_json::Value = serde_json::from_slice(&out.stdout).expect("metadata is JSON");
+    let parse = |v: &str| -> Vec<u32> {
+        let mut p: Vec<u32> = v.split('.').map(|x| x.parse().unwrap_or(0)).collect();
+        p.resize(3, 0);
+        p
+    };
+    let members: BTreeSet<&str> = meta["workspace_members"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|m| m.as_str().unwrap())
+        .collect();
+    let mut ours = None;
+    let mut needed = (vec![0, 0, 0], String::new());
+    for p in meta["packages"].as_array().unwrap() {
+        let Some(rv) = p["rust_version"].as_str() else {
+            continue;
+        };
+        if members.contains(p["id"].as_str().unwrap()) {
+            ours = Some(parse(rv));
+        } else if parse(rv) > needed.0 {
+            needed = (
+                parse(rv),
+                format!(
+                    "{} {}",
+                    p["name"].as_str().unwrap_or("?"),
+                    p["version"].as_str().unwrap_or("?")
+                ),
+            );
+        }
+    }
+    let ours = ours.expect("the workspace declares a rust-version");
+    assert!(
+        ours >= needed.0,
+        "rust-version {ours:?} is below {:?}, which {} needs",
+        needed.0,
+        needed.1
+    );
+}

@@ -174,11 +174,10 @@ fn clean_leftovers(target: &Path, parent: &Path, name: &str) -> Result<(), Scene
         }
     }
     // A commit killed between its two renames: the previous output goes back in place.
-    if !target.exists() {
-        if let Some(o) = olds.pop() {
-            std::fs::rename(&o, target)
-                .map_err(|e| io(&o, "cannot restore the previous output", e))?;
-        }
+    if !target.exists()
+        && let Some(o) = olds.pop()
+    {
+        std::fs::rename(&o, target).map_err(|e| io(&o, "cannot restore the previous output", e))?;
     }
     for p in partials.iter().chain(&olds) {
         std::fs::remove_dir_all(p).map_err(|e| io(p, "cannot remove a leftover", e))?;
@@ -347,13 +346,13 @@ impl FilesInto {
             )));
         };
         let name = name.to_string_lossy().into_owned();
-        if let Ok(meta) = std::fs::symlink_metadata(&target) {
-            if !meta.is_dir() {
-                return Err(SceneError::Usage(format!(
-                    "--out {}: exists and is not a directory",
-                    target.display()
-                )));
-            }
+        if let Ok(meta) = std::fs::symlink_metadata(&target)
+            && !meta.is_dir()
+        {
+            return Err(SceneError::Usage(format!(
+                "--out {}: exists and is not a directory",
+                target.display()
+            )));
         }
         std::fs::create_dir_all(&target)
             .map_err(|e| io(&target, "cannot create the directory", e))?;
@@ -414,21 +413,21 @@ impl FilesInto {
             .map(|e| e.file_name())
             .collect();
         names.sort();
-        if let Some(last) = last {
-            if let Some(k) = names.iter().position(|n| n == last) {
-                let n = names.remove(k);
-                names.push(n);
-            }
+        if let Some(last) = last
+            && let Some(k) = names.iter().position(|n| n == last)
+        {
+            let n = names.remove(k);
+            names.push(n);
         }
         for name in &names {
             let dest = self.target.join(name);
-            if let Ok(meta) = std::fs::symlink_metadata(&dest) {
-                if !meta.file_type().is_file() {
-                    return Err(SceneError::Usage(format!(
-                        "{}: exists and is not a regular file; fem2d replaces regular files only",
-                        dest.display()
-                    )));
-                }
+            if let Ok(meta) = std::fs::symlink_metadata(&dest)
+                && !meta.file_type().is_file()
+            {
+                return Err(SceneError::Usage(format!(
+                    "{}: exists and is not a regular file; fem2d replaces regular files only",
+                    dest.display()
+                )));
             }
         }
         let mut active = ACTIVE.lock().unwrap_or_else(|p| p.into_inner());

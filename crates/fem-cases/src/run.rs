@@ -276,10 +276,10 @@ impl VtkSink {
     fn create(dir: &Path) -> Result<Self, SceneError> {
         // Not recursive: fails rather than recreate a staging directory removed meanwhile.
         let vtk = dir.join("vtk");
-        if let Err(e) = std::fs::create_dir(&vtk) {
-            if e.kind() != std::io::ErrorKind::AlreadyExists {
-                return Err(SceneError::Io(format!("{}: {e}", vtk.display())));
-            }
+        if let Err(e) = std::fs::create_dir(&vtk)
+            && e.kind() != std::io::ErrorKind::AlreadyExists
+        {
+            return Err(SceneError::Io(format!("{}: {e}", vtk.display())));
         }
         Ok(VtkSink {
             writer: fem_render::vtk::PvdWriter::new(&dir.join("vtk"), "run")

@@ -194,13 +194,13 @@ pub fn parse_sweep(text: &str, origin: &str, base_dir: &Path) -> Result<Sweep, S
             sizes.join(" x ")
         )));
     }
-    if let Some(d) = spec.duration {
-        if !(d.is_finite() && d > 0.0 && d <= MAX_DURATION) {
-            let shown = fem_core::math::readable(d);
-            return Err(SceneError::Scene(format!(
-                "{origin}: duration = {shown}: must be a finite number > 0 and at most {MAX_DURATION:e} (s)"
-            )));
-        }
+    if let Some(d) = spec.duration
+        && !(d.is_finite() && d > 0.0 && d <= MAX_DURATION)
+    {
+        let shown = fem_core::math::readable(d);
+        return Err(SceneError::Scene(format!(
+            "{origin}: duration = {shown}: must be a finite number > 0 and at most {MAX_DURATION:e} (s)"
+        )));
     }
     Ok(Sweep {
         digest: digest_of(&spec),
@@ -253,10 +253,10 @@ fn first_difference(a: &JobResult, b: &JobResult) -> Option<String> {
     for (k, x) in oa {
         let y = ob.get(k).unwrap_or(&serde_json::Value::Null);
         if x != y {
-            if let (Some(sx), Some(sy)) = (x.as_object(), y.as_object()) {
-                if let Some((kk, _)) = sx.iter().find(|(kk, xx)| sy.get(*kk) != Some(*xx)) {
-                    return Some(format!("{k}.{kk}"));
-                }
+            if let (Some(sx), Some(sy)) = (x.as_object(), y.as_object())
+                && let Some((kk, _)) = sx.iter().find(|(kk, xx)| sy.get(*kk) != Some(*xx))
+            {
+                return Some(format!("{k}.{kk}"));
             }
             return Some(k.clone());
         }
@@ -396,19 +396,19 @@ impl Sweep {
                             Err(e) => return failed(job, &r, format!("reference: {e}")),
                             Ok(reference_run) if reference_run.summary.blew_up => None,
                             Ok(reference_run) => {
-                                if let Some(name) = reference.probe.as_deref() {
-                                    if r.probe(name).is_none() {
-                                        let names: Vec<&str> =
-                                            r.probes.iter().map(|p| p.name.as_str()).collect();
-                                        return failed(
-                                            job,
-                                            &r,
-                                            format!(
-                                                "reference.probe = {name:?}: the scene has no such probe (it has {})",
-                                                names.join(", ")
-                                            ),
-                                        );
-                                    }
+                                if let Some(name) = reference.probe.as_deref()
+                                    && r.probe(name).is_none()
+                                {
+                                    let names: Vec<&str> =
+                                        r.probes.iter().map(|p| p.name.as_str()).collect();
+                                    return failed(
+                                        job,
+                                        &r,
+                                        format!(
+                                            "reference.probe = {name:?}: the scene has no such probe (it has {})",
+                                            names.join(", ")
+                                        ),
+                                    );
                                 }
                                 compare_to_reference(&r, reference_run, reference.probe.as_deref())
                             }

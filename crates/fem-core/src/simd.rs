@@ -92,15 +92,15 @@ impl Isa {
     pub fn run<R>(self, f: impl FnOnce() -> R) -> R {
         #[cfg(target_arch = "x86_64")]
         {
-            if self >= Isa::Avx512 {
-                if let Some(simd) = pulp::x86::V4::try_new() {
-                    return simd.vectorize(f);
-                }
+            if self >= Isa::Avx512
+                && let Some(simd) = pulp::x86::V4::try_new()
+            {
+                return simd.vectorize(f);
             }
-            if self >= Isa::Avx2 {
-                if let Some(simd) = pulp::x86::V3::try_new() {
-                    return simd.vectorize(f);
-                }
+            if self >= Isa::Avx2
+                && let Some(simd) = pulp::x86::V3::try_new()
+            {
+                return simd.vectorize(f);
             }
         }
         f()

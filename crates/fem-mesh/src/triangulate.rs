@@ -86,13 +86,13 @@ pub fn triangulate(
     polygons: &[PolygonWithHoles],
     params: &TriangulateParams,
 ) -> Result<(Mesh2, TriangulateReport)> {
-    if let Some(a) = params.max_area {
-        if !(a.is_finite() && a > 0.0) {
-            return Err(MeshError::invalid(
-                "triangulate",
-                format!("max area must be positive and finite, got {a}"),
-            ));
-        }
+    if let Some(a) = params.max_area
+        && !(a.is_finite() && a > 0.0)
+    {
+        return Err(MeshError::invalid(
+            "triangulate",
+            format!("max area must be positive and finite, got {a}"),
+        ));
     }
     if params.max_steiner_points > MAX_STEINER_POINTS {
         return Err(MeshError::invalid(

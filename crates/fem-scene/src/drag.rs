@@ -232,18 +232,18 @@ impl Hand {
     /// After a step from `before` (the obstacles' poses at its start) of length `dt`: a held
     /// obstacle is put where the hand holds it, with the hand's velocity and no rotation.
     pub fn after_step(&self, state: &mut State, before: &[fem_solvers::BodyState], dt: Real) {
-        if let Held::Obstacle { index, offset } = self.held {
-            if let (Some(b), Some(b0)) = (state.bodies.get_mut(index), before.get(index)) {
-                let goal = self.target + offset;
-                b.velocity = if dt > 0.0 {
-                    (goal - b0.position) / dt
-                } else {
-                    Vec2::zeros()
-                };
-                b.position = goal;
-                b.angle = b0.angle;
-                b.angular_velocity = 0.0;
-            }
+        if let Held::Obstacle { index, offset } = self.held
+            && let (Some(b), Some(b0)) = (state.bodies.get_mut(index), before.get(index))
+        {
+            let goal = self.target + offset;
+            b.velocity = if dt > 0.0 {
+                (goal - b0.position) / dt
+            } else {
+                Vec2::zeros()
+            };
+            b.position = goal;
+            b.angle = b0.angle;
+            b.angular_velocity = 0.0;
         }
     }
 }

@@ -352,12 +352,11 @@ impl Recorder {
             .enumerate()
             .filter(|(_, v)| v.is_finite())
             .max_by(|a, b| a.1.total_cmp(b.1))
+            && *vm > self.max_vm.0
         {
-            if *vm > self.max_vm.0 {
-                let [a, b, c] = mesh.gather(t, &state.x);
-                let centroid = (a + b + c) / 3.0;
-                self.max_vm = (*vm, step, t, [centroid.x, centroid.y]);
-            }
+            let [a, b, c] = mesh.gather(t, &state.x);
+            let centroid = (a + b + c) / 3.0;
+            self.max_vm = (*vm, step, t, [centroid.x, centroid.y]);
         }
         self.frame_times.push((step, time));
         for (series, p) in self.probe_series.iter_mut().zip(probes) {
@@ -404,7 +403,7 @@ impl Recorder {
             sink.frame(&frame)?;
         }
         if let Some(every) = self.snapshot_every {
-            let keep = (self.frame_times.len() - 1) % every.max(1) == 0;
+            let keep = (self.frame_times.len() - 1).is_multiple_of(every.max(1));
             let mut snap = self.latest.take().unwrap_or_default();
             snap.step = step;
             snap.time = time;
@@ -669,14 +668,14 @@ fn step_loop<E: Energy>(
         if let Some(e) = failed {
             blow_up = Some(format!("{}: {e}", scene.origin));
         }
-        if done % every == 0 || finished(done, state) || blow_up.is_some() {
+        if done.is_multiple_of(every) || finished(done, state) || blow_up.is_some() {
             if rec.frame_times.last().map(|f| f.0) != Some(state.step) {
                 rec.record(model, state, probes, &mut env.sinks)?;
             }
-            if blow_up.is_none() {
-                if let Some(m) = rec.runaway.take() {
-                    blow_up = Some(format!("{}: {m}", scene.origin));
-                }
+            if blow_up.is_none()
+                && let Some(m) = rec.runaway.take()
+            {
+                blow_up = Some(format!("{}: {m}", scene.origin));
             }
         }
         if let Some(p) = env.progress.as_deref_mut() {

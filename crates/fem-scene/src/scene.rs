@@ -438,14 +438,13 @@ pub fn parse_scene(
             let mut inner = e.inner().message().trim().replace('\n', " ");
             // The solver table is read by `SolverSpec`, whose messages start with the key
             // (`iterations: invalid type ...`): join it to the path as any other field.
-            if path == "solver" {
-                if let Some((key, rest)) = inner.split_once(": ") {
-                    if !key.is_empty() && key.chars().all(|c| c.is_ascii_alphanumeric() || c == '_')
-                    {
-                        path = format!("solver.{key}");
-                        inner = rest.to_owned();
-                    }
-                }
+            if path == "solver"
+                && let Some((key, rest)) = inner.split_once(": ")
+                && !key.is_empty()
+                && key.chars().all(|c| c.is_ascii_alphanumeric() || c == '_')
+            {
+                path = format!("solver.{key}");
+                inner = rest.to_owned();
             }
             if path == "." || path.is_empty() {
                 SceneError::Scene(format!("{origin}: {inner}"))
@@ -678,10 +677,10 @@ impl LoadedScene {
             boxed(&f, p.min, p.max)?;
             point(&format!("{f}.velocity"), p.velocity)?;
             non_negative(&format!("{f}.start"), p.start, "s")?;
-            if let Some(end) = p.end {
-                if end.is_nan() || end < p.start {
-                    return Err(self.error(&format!("{f}.end"), end, "must be >= start (s)"));
-                }
+            if let Some(end) = p.end
+                && (end.is_nan() || end < p.start)
+            {
+                return Err(self.error(&format!("{f}.end"), end, "must be >= start (s)"));
             }
         }
         for (i, t) in s.traction.iter().enumerate() {
@@ -791,14 +790,10 @@ impl LoadedScene {
                     )?;
                     let start = o.start.unwrap_or(0.0);
                     non_negative(&format!("{f}.start"), start, "s")?;
-                    if let Some(end) = o.end {
-                        if end.is_nan() || end < start {
-                            return Err(self.error(
-                                &format!("{f}.end"),
-                                end,
-                                "must be >= start (s)",
-                            ));
-                        }
+                    if let Some(end) = o.end
+                        && (end.is_nan() || end < start)
+                    {
+                        return Err(self.error(&format!("{f}.end"), end, "must be >= start (s)"));
                     }
                 }
             }
@@ -944,24 +939,24 @@ impl LoadedScene {
                 positive("width", m.width)?;
                 positive("height", m.height)?;
                 for (name, n) in [("nx", m.nx), ("ny", m.ny)] {
-                    if let Some(n) = n {
-                        if n == 0 || n > 10_000 {
-                            return Err(self.error(
-                                &format!("mesh.{name}"),
-                                n,
-                                "must lie in 1..=10000",
-                            ));
-                        }
-                    }
-                }
-                if let Some(o) = m.origin {
-                    if !o.iter().all(|c| c.is_finite()) {
+                    if let Some(n) = n
+                        && (n == 0 || n > 10_000)
+                    {
                         return Err(self.error(
-                            "mesh.origin",
-                            fmt_point(o),
-                            "must have finite coordinates",
+                            &format!("mesh.{name}"),
+                            n,
+                            "must lie in 1..=10000",
                         ));
                     }
+                }
+                if let Some(o) = m.origin
+                    && !o.iter().all(|c| c.is_finite())
+                {
+                    return Err(self.error(
+                        "mesh.origin",
+                        fmt_point(o),
+                        "must have finite coordinates",
+                    ));
                 }
             }
             MeshKind::File | MeshKind::Model => need("path", m.path.is_some())?,
@@ -971,24 +966,24 @@ impl LoadedScene {
         positive("alpha", m.alpha)?;
         positive("epsilon", m.epsilon)?;
         positive("max_area", m.max_area)?;
-        if let Some(a) = m.min_angle {
-            if !(a.is_finite() && (0.0..=33.0).contains(&a)) {
-                return Err(self.error("mesh.min_angle", a, "must lie in [0, 33] degrees"));
-            }
+        if let Some(a) = m.min_angle
+            && !(a.is_finite() && (0.0..=33.0).contains(&a))
+        {
+            return Err(self.error("mesh.min_angle", a, "must lie in [0, 33] degrees"));
         }
-        if let Some(r) = m.rotate_deg {
-            if !r.is_finite() {
-                return Err(self.error("mesh.rotate_deg", r, "must be a finite number"));
-            }
+        if let Some(r) = m.rotate_deg
+            && !r.is_finite()
+        {
+            return Err(self.error("mesh.rotate_deg", r, "must be a finite number"));
         }
-        if let Some(p) = m.align_min {
-            if !p.iter().all(|c| c.is_finite()) {
-                return Err(self.error(
-                    "mesh.align_min",
-                    fmt_point(p),
-                    "must have finite coordinates",
-                ));
-            }
+        if let Some(p) = m.align_min
+            && !p.iter().all(|c| c.is_finite())
+        {
+            return Err(self.error(
+                "mesh.align_min",
+                fmt_point(p),
+                "must have finite coordinates",
+            ));
         }
         Ok(())
     }

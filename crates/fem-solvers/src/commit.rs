@@ -82,13 +82,13 @@ impl StepEnd<'_> {
                 self.min_det_f,
             )?;
         }
-        if let Some(bodies) = &self.bodies {
-            if let Some(body) = bodies.iter().position(|b| !b.is_finite()) {
-                return Err(SolverError::NonFiniteBody {
-                    step: state.step,
-                    body,
-                });
-            }
+        if let Some(bodies) = &self.bodies
+            && let Some(body) = bodies.iter().position(|b| !b.is_finite())
+        {
+            return Err(SolverError::NonFiniteBody {
+                step: state.step,
+                body,
+            });
         }
         accept()?;
         std::mem::swap(&mut state.x, self.x);

@@ -104,14 +104,14 @@ impl ActiveGrab {
     /// and resolve it at positions `x`.
     pub(crate) fn new(grab: &Grab, x: &[Vec2], kinematic: &[bool]) -> Result<Self, SolverError> {
         check_finite_vec("grab.target", grab.target)?;
-        if let GrabModel::Spring { stiffness } = grab.model {
-            if !(stiffness.is_finite() && stiffness > 0.0) {
-                return Err(SolverError::invalid(
-                    "grab.stiffness",
-                    stiffness,
-                    "must be a finite number > 0 (N/m)",
-                ));
-            }
+        if let GrabModel::Spring { stiffness } = grab.model
+            && !(stiffness.is_finite() && stiffness > 0.0)
+        {
+            return Err(SolverError::invalid(
+                "grab.stiffness",
+                stiffness,
+                "must be a finite number > 0 (N/m)",
+            ));
         }
         if grab.anchor.is_empty() {
             return Err(SolverError::invalid(

@@ -133,7 +133,7 @@ pub(crate) struct ElementBlock {
 }
 
 // A scatter-plan chunk is a whole number of blocks.
-const _: () = assert!(PLAN_CHUNK % LANES == 0);
+const _: () = assert!(PLAN_CHUNK.is_multiple_of(LANES));
 
 /// Pack elements (in triangle order) into blocks of [`LANES`].
 pub(crate) fn pack_blocks(elements: &[PackedElement]) -> Vec<ElementBlock> {

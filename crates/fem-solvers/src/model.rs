@@ -438,12 +438,12 @@ impl<E: Energy> Model<E> {
     /// Effective kinematics from the boundary conditions and the grab; new layout.
     fn refresh_kinematics(&mut self) {
         self.kinematics = self.base.clone();
-        if let Some(g) = &self.grab {
-            if g.model == GrabModel::Pin {
-                for a in &g.anchors {
-                    self.kinematics
-                        .assign(&[a.vertex as usize], Motion::Held(g.goal(a)));
-                }
+        if let Some(g) = &self.grab
+            && g.model == GrabModel::Pin
+        {
+            for a in &g.anchors {
+                self.kinematics
+                    .assign(&[a.vertex as usize], Motion::Held(g.goal(a)));
             }
         }
         self.refresh_inverse_masses();

@@ -163,18 +163,18 @@ pub fn parse_ply(bytes: &[u8], path: &Path) -> Result<Surface3> {
                                 format!("property {pname}: {m}"),
                             )
                         })?;
-                        if let Some(xyz) = xyz {
-                            if let Some(k) = xyz.iter().position(|&i| i == pi) {
-                                if !v.is_finite() {
-                                    return Err(reader.error(
-                                        path,
-                                        &element.name,
-                                        item,
-                                        format!("coordinate {pname} is not finite ({v})"),
-                                    ));
-                                }
-                                point[k] = v;
+                        if let Some(xyz) = xyz
+                            && let Some(k) = xyz.iter().position(|&i| i == pi)
+                        {
+                            if !v.is_finite() {
+                                return Err(reader.error(
+                                    path,
+                                    &element.name,
+                                    item,
+                                    format!("coordinate {pname} is not finite ({v})"),
+                                ));
                             }
+                            point[k] = v;
                         }
                     }
                     Property::List { count, item: ty } => {

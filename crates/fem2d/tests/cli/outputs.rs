@@ -280,7 +280,11 @@ fn an_interrupted_mesh_leaves_its_three_outputs_of_one_mesh_and_no_temporary_fil
     let dir = scratch("interrupted-mesh");
     let args = |k: u32| -> Vec<String> {
         // Alternating bounds on the area, so consecutive meshes differ in size.
-        let area = if k % 2 == 0 { "1e-6" } else { "1.3e-6" };
+        let area = if k.is_multiple_of(2) {
+            "1e-6"
+        } else {
+            "1.3e-6"
+        };
         [
             "mesh",
             "--builtin-body",
