@@ -37,7 +37,8 @@ pub struct CaseRuns {
     pub c: Comparison,
     /// Case D (its scene's energy and solver).
     pub d: Comparison,
-    /// The case B stability sweep (`fixtures/sweeps/case-b-stability.toml`), when run.
+    /// The case B stability sweep (`fixtures/sweeps/case-b-stability.toml`, a link to the
+    /// crate's `sweeps/case-b-stability.toml`), when run.
     pub stability: Option<Merged>,
     /// Wall time of each part, s: `(name, seconds)`.
     pub timings: Vec<(String, f64)>,
@@ -50,7 +51,7 @@ pub const PAPER_ENERGIES: [EnergyKind; 3] = [
     EnergyKind::NeoHookean,
 ];
 
-const STABILITY_SWEEP: &str = include_str!("../../../fixtures/sweeps/case-b-stability.toml");
+const STABILITY_SWEEP: &str = include_str!("../sweeps/case-b-stability.toml");
 
 /// Runs cases A-D (and the case B stability sweep when `stability`), keeping every frame of
 /// every run for the pictures. `progress` is told what starts.

@@ -1,5 +1,6 @@
-//! The built-in cases A-D: their scene files (`fixtures/scenes/`) compiled in, so `fem2d run
-//! case-a` works from any directory and a browser needs no file.
+//! The built-in cases A-D: their scene files (`crates/fem-scene/cases/`, linked from
+//! `fixtures/scenes/`) compiled in, so `fem2d run case-a` works from any directory, a browser
+//! needs no file, and the published crate carries them.
 
 use std::path::Path;
 
@@ -8,22 +9,10 @@ use crate::scene::{LoadedScene, parse_scene};
 
 /// The built-in case names and their scene files' text.
 pub const CASES: [(&str, &str); 4] = [
-    (
-        "case-a",
-        include_str!("../../../fixtures/scenes/case-a.toml"),
-    ),
-    (
-        "case-b",
-        include_str!("../../../fixtures/scenes/case-b.toml"),
-    ),
-    (
-        "case-c",
-        include_str!("../../../fixtures/scenes/case-c.toml"),
-    ),
-    (
-        "case-d",
-        include_str!("../../../fixtures/scenes/case-d.toml"),
-    ),
+    ("case-a", include_str!("../cases/case-a.toml")),
+    ("case-b", include_str!("../cases/case-b.toml")),
+    ("case-c", include_str!("../cases/case-c.toml")),
+    ("case-d", include_str!("../cases/case-d.toml")),
 ];
 
 /// The text of built-in case `name`.
