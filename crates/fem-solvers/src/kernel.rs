@@ -101,6 +101,19 @@ pub(crate) fn deformation_gradient(el: &PackedElement, x: &[Vec2]) -> Mat2 {
     )
 }
 
+/// The shape-function gradient of `corner` (see `fem_core::element::Tri3::gradients`).
+#[inline(always)]
+pub(crate) fn corner_gradient(el: &PackedElement, corner: u8) -> Vec2 {
+    let d = &el.dm_inv;
+    let g1 = Vec2::new(d[(0, 0)], d[(0, 1)]);
+    let g2 = Vec2::new(d[(1, 0)], d[(1, 1)]);
+    match corner {
+        0 => -(g1 + g2),
+        1 => g1,
+        _ => g2,
+    }
+}
+
 /// `a P g_1` and `a P g_2`: the gradients of the element energy `a psi` with respect to its
 /// vertices 1 and 2 (the gradient for vertex 0 is minus their sum). Forces are the negatives.
 #[inline(always)]

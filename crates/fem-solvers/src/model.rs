@@ -21,7 +21,9 @@ use crate::bc::{Kinematics, Motion, PrescribedMotion, Region};
 use crate::contact::{ContactParams, Ground, Obstacle, ObstacleMotion};
 use crate::error::{SolverError, check_finite_vec, check_positive};
 use crate::grab::{ActiveGrab, Grab, GrabModel, Spring};
-use crate::kernel::{ElementBlock, PackedElement, deformation_gradient, pack, pack_blocks};
+use crate::kernel::{
+    ElementBlock, PackedElement, corner_gradient, deformation_gradient, pack, pack_blocks,
+};
 
 /// A new layout identifier, unique in the process.
 fn fresh_layout() -> u64 {
@@ -383,6 +385,11 @@ impl<E: Energy> Model<E> {
         })
     }
 
+    /// Whether a grab is active.
+    pub fn is_grabbed(&self) -> bool {
+        self.grab.is_some()
+    }
+
     /// The active grab's anchor point `sum w_i x_i` at positions `x`, m.
     pub fn grab_point(&self, x: &[Vec2]) -> Option<Vec2> {
         self.grab.as_ref().map(|g| g.point(x))
@@ -406,7 +413,7 @@ impl<E: Energy> Model<E> {
                     for &(t, corner) in adj.of(v) {
                         let el = &self.elements[t as usize];
                         let p = self.energy.pk1(&deformation_gradient(el, x));
-                        f += (p * crate::vbd::corner_gradient(el, corner)) * el.area;
+                        f += (p * corner_gradient(el, corner)) * el.area;
                     }
                     f -= self.gravity * self.masses[v];
                 }

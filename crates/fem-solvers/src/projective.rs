@@ -42,14 +42,16 @@ use rayon::prelude::*;
 
 use crate::error::{SolverError, check_count, check_non_negative, check_positive, check_rho};
 use crate::implicit::external_load;
-use crate::kernel::{ELEMENT_CHUNK, PackedElement, VERTEX_CHUNK, deformation_gradient, pack};
+use crate::kernel::{
+    ELEMENT_CHUNK, PackedElement, VERTEX_CHUNK, corner_gradient, deformation_gradient, pack,
+};
 use crate::limits;
 use crate::model::Model;
 use crate::pd_system::{PdSystem, rest_lame};
 use crate::registry::{Capabilities, Clock, Solver};
 use crate::report::StepReport;
 use crate::state::State;
-use crate::vbd::{Chebyshev, commit_positions, corner_gradient};
+use crate::vbd::{Chebyshev, commit_positions};
 use crate::{Stepper, check_step_inputs};
 
 /// Parameters of [`PdStepper`] (scene keys: the field names).

@@ -243,7 +243,7 @@ impl Stepper for StaticStepper {
         }
         // At full load the equilibrium is reached; with a grab it is solved again at every
         // step, following the hand.
-        if state.t >= 1.0 && model.active_grab().is_none() {
+        if state.t >= 1.0 && !model.is_grabbed() {
             let (mut min_det_f, mut inverted) = (Real::INFINITY, 0);
             let mesh = model.mesh();
             for (t, el) in mesh.elements().iter().enumerate() {

@@ -74,7 +74,9 @@ use crate::commit::{Kinematic, StepEnd};
 use crate::error::{SolverError, check_count, check_non_negative, check_positive, check_rho};
 use crate::grab::{Spring, spring_of};
 use crate::implicit::external_load;
-use crate::kernel::{ELEMENT_CHUNK, Inversion, PackedElement, deformation_gradient, pack};
+use crate::kernel::{
+    ELEMENT_CHUNK, Inversion, PackedElement, corner_gradient, deformation_gradient, pack,
+};
 use crate::limits;
 use crate::model::Model;
 use crate::registry::{Capabilities, Clock, Solver};
@@ -218,19 +220,6 @@ struct Outcome {
 /// Whether `energy` forbids inversion: `psi` is infinite at `det F = -1`.
 pub(crate) fn forbids_inversion<E: Energy>(energy: &E) -> bool {
     !energy.psi(&Mat2::new(1.0, 0.0, 0.0, -1.0)).is_finite()
-}
-
-/// The shape-function gradient of `corner` (see `fem_core::element::Tri3::gradients`).
-#[inline(always)]
-pub(crate) fn corner_gradient(el: &PackedElement, corner: u8) -> Vec2 {
-    let d = &el.dm_inv;
-    let g1 = Vec2::new(d[(0, 0)], d[(0, 1)]);
-    let g2 = Vec2::new(d[(1, 0)], d[(1, 1)]);
-    match corner {
-        0 => -(g1 + g2),
-        1 => g1,
-        _ => g2,
-    }
 }
 
 /// `F` of `el` with the vertex at `corner` moved to `p`.

@@ -31,7 +31,7 @@ use fem_scene::build::{
 use fem_scene::cases::{case_text, load_case};
 use fem_scene::drag::{DragAction, DragEvent, DragPlayer, DragTrajectory, Hand, Held};
 use fem_scene::scene::{LoadedScene, Scene, parse_scene};
-use fem_solvers::{AnyStepper, BodyState, Clock, Grab, Model, State, Stepper};
+use fem_solvers::{AnyStepper, BodyState, Clock, Model, State, Stepper};
 
 /// The most simulated time one frame may owe, s: a frame after a long pause (a hidden tab,
 /// a breakpoint) does not ask for more.
@@ -134,8 +134,6 @@ pub struct App {
     formula: VonMisesFormula,
     stress: Vec<ElementStress>,
     rest_area: Vec<Real>,
-    /// The grab to restore on a rebuilt model.
-    grab: Option<Grab>,
     hud: Hud,
     /// Steps the current frame wants.
     wanted: u64,
@@ -187,7 +185,6 @@ impl App {
             stepper,
             state,
             stress: Vec::new(),
-            grab: None,
             hud: Hud::default(),
             wanted: 0,
             recording: None,
@@ -229,12 +226,12 @@ impl App {
             }
             kept
         };
+        // The old model's grab (the pointer's or a replay's) holds the rebuilt one too.
         if !restart {
-            if let Some(g) = &self.grab {
-                model.grab(g, &state.x).map_err(|e| e.to_string())?;
+            if let Some(g) = self.model.active_grab() {
+                model.grab(&g, &state.x).map_err(|e| e.to_string())?;
             }
         } else {
-            self.grab = None;
             self.hand = Hand::default();
         }
         self.overrides = overrides;
@@ -258,7 +255,6 @@ impl App {
             self.stepper = stepper;
             self.state = state;
         }
-        self.grab = None;
         self.player = None;
         self.hand = Hand::default();
         self.hud = Hud::default();
@@ -293,12 +289,11 @@ impl App {
             return Err(e.clone());
         }
         for k in 0..n {
-            if let Some(p) = self.player.as_mut() {
-                if let Err(e) = p.apply(&mut self.model, &self.state) {
-                    self.hud.error = Some(e.to_string());
-                    return Err(e.to_string());
-                }
-                self.grab = self.model.active_grab();
+            if let Some(p) = self.player.as_mut()
+                && let Err(e) = p.apply(&mut self.model, &self.state)
+            {
+                self.hud.error = Some(e.to_string());
+                return Err(e.to_string());
             }
             self.before.clone_from(&self.state.bodies);
             let t = self.state.t;
@@ -351,7 +346,6 @@ impl App {
             .grab(&mut self.model, &self.state, Vec2::new(x, y), stiffness)
             .map_err(|e| e.to_string())?;
         self.record(DragAction::Grab { x, y, stiffness });
-        self.grab = self.model.active_grab();
         self.refresh();
         Ok(grabbed)
     }
@@ -365,7 +359,6 @@ impl App {
         self.hand
             .move_to(&mut self.model, Vec2::new(x, y))
             .map_err(|e| e.to_string())?;
-        self.grab = self.model.active_grab();
         Ok(())
     }
 
@@ -375,7 +368,6 @@ impl App {
             self.record(DragAction::Release);
         }
         self.hand.release(&mut self.model);
-        self.grab = None;
         self.hud.grab_force = None;
     }
 
