@@ -11,7 +11,7 @@ use fem_core::energy::EnergyKind;
 use serde::{Deserialize, Serialize};
 
 use crate::run::{RunOptions, RunResult, run_scene};
-use fem_mesh::structured::Diagonal;
+use fem_core::structured::Diagonal;
 use fem_scene::SceneError;
 use fem_scene::cases::load_case;
 

@@ -30,8 +30,8 @@ fn main() {
         "material: E = {} Pa, nu = {}, {plane}: mu = {:.2} Pa, lambda = {:.2} Pa\n",
         material.youngs_modulus(),
         material.poisson_ratio(),
-        lame.mu,
-        lame.lambda
+        lame.mu(),
+        lame.lambda()
     );
     let energies: Vec<_> = EnergyKind::ALL
         .iter()

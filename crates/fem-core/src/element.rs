@@ -11,6 +11,7 @@ use crate::math::{Mat2, Mat4, Mat6, Real, Vec2, vec_index};
 
 /// Why a rest triangle cannot be used.
 #[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
+#[non_exhaustive]
 pub enum ElementError {
     /// Zero (or numerically zero) area.
     #[error("degenerate rest triangle (area {area:e}, below {threshold:e})")]

@@ -11,6 +11,7 @@
 //! - [`element`]: the Tri3 element (`Dm^-1`, rest area, chain rule from `P` to nodal forces).
 //! - [`mesh`]: a validated mesh with rest data, adjacency and lumped masses; repeated
 //!   triangles, edges of more than two triangles and overlapping triangles are refused.
+//! - [`structured`]: the structured rectangle mesh (cases A-C), four diagonal patterns.
 //! - [`partition`]: the chunking that makes the parallel scatter deterministic.
 //! - [`assembly`]: energy, forces and stiffness; serial reference and bit-identical parallel
 //!   paths.
@@ -33,7 +34,7 @@
 //! use fem_core::{assembly, energy::{EnergyKind, NeoHookean}, material::Material, mesh::Mesh, PlaneModel};
 //! let mesh = Mesh::from_arrays(&[[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]], &[[0, 1, 2]]).unwrap();
 //! let lame = Material::new(1000.0, 0.3, 1.0).unwrap().lame(PlaneModel::PlaneStrain);
-//! let energy = NeoHookean::new(lame);
+//! let energy = NeoHookean::new(lame).unwrap();
 //! // Stretch the element by 10% along x and read the nodal forces.
 //! let x: Vec<_> = mesh.vertices().iter().map(|p| nalgebra::Vector2::new(1.1 * p.x, p.y)).collect();
 //! let mut f = vec![nalgebra::Vector2::zeros(); 3];
@@ -54,5 +55,6 @@ pub mod partition;
 pub mod polar;
 pub mod simd;
 pub mod stress;
+pub mod structured;
 
 pub use material::{Lame, Material, MaterialError, PlaneModel};

@@ -71,7 +71,8 @@ impl<'de> serde::Deserialize<'de> for PlaneModel {
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 #[error("material.{field} = {}: {rule}", crate::math::readable(*value))]
 pub struct MaterialError {
-    /// Field name as in scene files (`youngs_modulus`, `poisson_ratio`, `density`).
+    /// Field name as in scene files (`youngs_modulus`, `poisson_ratio`, `density`), or `mu`
+    /// and `lambda` from [`Lame::new`].
     pub field: &'static str,
     /// The rejected value.
     pub value: Real,
@@ -79,13 +80,47 @@ pub struct MaterialError {
     pub rule: &'static str,
 }
 
-/// The Lamé parameters `mu` (shear modulus) and `lambda`, in Pa.
+/// The Lamé parameters `mu` (shear modulus) and `lambda`, in Pa: validated, so every energy
+/// built from them is well posed. Build them with [`Lame::new`] or from a [`Material`] with
+/// [`Material::lame`] (which always gives valid parameters).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Lame {
+    mu: Real,
+    lambda: Real,
+}
+
+impl Lame {
+    /// Validate and build: `mu` finite and > 0, `lambda` finite, and the 2D bulk modulus
+    /// `lambda + mu` > 0 (the in-plane stability condition: below it a uniform expansion
+    /// lowers the linearised energy). Every [`Material`] satisfies them under either
+    /// [`PlaneModel`].
+    pub fn new(mu: Real, lambda: Real) -> Result<Self, MaterialError> {
+        if !mu.is_finite() || mu <= 0.0 {
+            return Err(MaterialError {
+                field: "mu",
+                value: mu,
+                rule: "must be a finite number > 0 (Pa)",
+            });
+        }
+        if !lambda.is_finite() || lambda + mu <= 0.0 {
+            return Err(MaterialError {
+                field: "lambda",
+                value: lambda,
+                rule: "must be finite with lambda + mu > 0 (a positive 2D bulk modulus)",
+            });
+        }
+        Ok(Lame { mu, lambda })
+    }
+
     /// Shear modulus `mu`, Pa.
-    pub mu: Real,
+    pub fn mu(&self) -> Real {
+        self.mu
+    }
+
     /// First Lamé parameter `lambda`, Pa.
-    pub lambda: Real,
+    pub fn lambda(&self) -> Real {
+        self.lambda
+    }
 }
 
 /// Isotropic linear-elastic constants and density of a 2D body.
@@ -155,7 +190,9 @@ impl Material {
         self.density
     }
 
-    /// Lamé parameters for the given 2D reduction (see the module docs).
+    /// Lamé parameters for the given 2D reduction (see the module docs). Always valid in the
+    /// sense of [`Lame::new`]: `mu > 0` and `lambda + mu` is `E / (2 (1 + nu) (1 - 2 nu))`
+    /// (plane strain) or `E / (2 (1 - nu))` (plane stress), both > 0.
     pub fn lame(&self, plane: PlaneModel) -> Lame {
         let (e, nu) = (self.youngs_modulus, self.poisson_ratio);
         let mu = e / (2.0 * (1.0 + nu));
@@ -188,6 +225,28 @@ mod tests {
         assert_eq!(ps.mu, l.mu);
         let expected = 2.0 * l.lambda * l.mu / (l.lambda + 2.0 * l.mu);
         assert!((ps.lambda - expected).abs() < 1e-12);
+    }
+
+    #[test]
+    fn lame_is_validated() {
+        assert!(Lame::new(1.0, -0.5).is_ok());
+        assert_eq!(Lame::new(-1.0, 1.0).unwrap_err().field, "mu");
+        assert_eq!(Lame::new(0.0, 1.0).unwrap_err().field, "mu");
+        assert_eq!(Lame::new(Real::NAN, 1.0).unwrap_err().field, "mu");
+        assert_eq!(Lame::new(1.0, -1.0).unwrap_err().field, "lambda");
+        assert_eq!(Lame::new(1.0, Real::INFINITY).unwrap_err().field, "lambda");
+        assert_eq!(
+            Lame::new(-2.0, 1.0).unwrap_err().to_string(),
+            "material.mu = -2: must be a finite number > 0 (Pa)"
+        );
+        // Every material gives valid parameters, at the ends of the Poisson range too.
+        for nu in [-0.999, -0.5, 0.0, 0.3, 0.499] {
+            let m = Material::new(1.0e6, nu, 1.0).unwrap();
+            for plane in [PlaneModel::PlaneStrain, PlaneModel::PlaneStress] {
+                let l = m.lame(plane);
+                assert_eq!(Lame::new(l.mu(), l.lambda()), Ok(l), "nu = {nu}, {plane}");
+            }
+        }
     }
 
     #[test]

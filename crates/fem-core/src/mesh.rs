@@ -13,6 +13,7 @@ use crate::partition::ScatterPlan;
 
 /// Why a mesh is rejected.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[non_exhaustive]
 pub enum MeshError {
     /// No vertices or no triangles.
     #[error("mesh has no {0}")]
@@ -102,6 +103,10 @@ pub enum MeshError {
     /// A vertex belongs to no triangle.
     #[error("vertices[{0}] is used by no triangle (it would have zero mass)")]
     UnreferencedVertex(usize),
+    /// A structured rectangle's parameters are unusable
+    /// ([`structured::rectangle`](crate::structured::rectangle)).
+    #[error("rectangle: {0}")]
+    Rectangle(String),
     /// A lumped-mass input is not a finite positive number.
     #[error("{field} = {value}: must be a finite number > 0")]
     BadMassInput {

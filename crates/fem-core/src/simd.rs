@@ -24,6 +24,7 @@ use std::sync::OnceLock;
 
 /// An instruction set the batched kernels can be compiled for.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+#[non_exhaustive]
 pub enum Isa {
     /// What the build targets (SSE2 on x86-64; every other architecture).
     Baseline,

@@ -2,9 +2,9 @@
 //!
 //! The in-plane Cauchy stress is the energy's [`Energy::cauchy`] (Pa): `P F^T / J`, or for the
 //! small-strain energy its own stress `P`. The von Mises formula says what `sigma_zz` is:
-//! - [`VonMisesFormula::PlaneStress`] (default): `sigma_zz = 0`,
+//! - [`VonMisesFormula::PlaneStress`]: `sigma_zz = 0`,
 //!   `sigma_vm = sqrt(sxx^2 - sxx syy + syy^2 + 3 sxy^2)`;
-//! - [`VonMisesFormula::PlaneStrain`]: `sigma_zz` is the energy's out-of-plane stress at
+//! - [`VonMisesFormula::PlaneStrain`] (default, like [`PlaneModel`]'s): `sigma_zz` is the energy's out-of-plane stress at
 //!   `F33 = 1` ([`Energy::cauchy_zz`], exact for every energy; the small-strain estimate
 //!   `nu (sxx + syy)` under-reports a Neo-Hookean element at `F = [[1.2, 0.3], [0.1, 0.9]]` by
 //!   1.2 %, StVK by 3.7 %), then the full 3D formula
@@ -15,17 +15,31 @@
 //! element values.
 
 use crate::energy::Energy;
+use crate::material::PlaneModel;
 use crate::math::{Mat2, Real, Vec2};
 use crate::mesh::Mesh;
 
-/// Which out-of-plane stress the von Mises stress assumes (see the module docs).
+/// Which out-of-plane stress the von Mises stress assumes (see the module docs). The default
+/// and the conversion from a [`PlaneModel`] follow the body's 2D reduction: a plane-strain
+/// body (the default) reports the plane-strain formula.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum VonMisesFormula {
     /// `sigma_zz = 0`.
-    #[default]
     PlaneStress,
-    /// `sigma_zz` from the energy at `F33 = 1` ([`Energy::cauchy_zz`]).
+    /// `sigma_zz` from the energy at `F33 = 1` ([`Energy::cauchy_zz`]). Default.
+    #[default]
     PlaneStrain,
+}
+
+impl From<PlaneModel> for VonMisesFormula {
+    /// The formula that matches the body's reduction: `sigma_zz = 0` for plane stress, the
+    /// energy's `sigma_zz` at `F33 = 1` for plane strain.
+    fn from(plane: PlaneModel) -> Self {
+        match plane {
+            PlaneModel::PlaneStrain => VonMisesFormula::PlaneStrain,
+            PlaneModel::PlaneStress => VonMisesFormula::PlaneStress,
+        }
+    }
 }
 
 impl VonMisesFormula {
@@ -149,6 +163,18 @@ pub fn vertex_average(mesh: &Mesh, per_element: &[Real], out: &mut [Real]) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_default_formula_follows_the_default_plane_model() {
+        assert_eq!(
+            VonMisesFormula::default(),
+            VonMisesFormula::from(PlaneModel::default())
+        );
+        assert_eq!(
+            VonMisesFormula::from(PlaneModel::PlaneStress),
+            VonMisesFormula::PlaneStress
+        );
+    }
 
     #[test]
     fn uniaxial_stress_has_von_mises_equal_to_the_stress() {

@@ -7,6 +7,7 @@ use std::path::Path;
 ///
 /// `Display` is always a single line, suitable as a command-line error message.
 #[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
 pub enum MeshError {
     /// A file could not be read or written.
     #[error("{path}: {source}")]

@@ -11,8 +11,7 @@
 //! 5. [`triangulate`]: constrained Delaunay with max-area / min-angle refinement (spade);
 //! 6. [`quality`]: the mesh quality report.
 //!
-//! [`pipeline`] chains them with per-stage timings; [`structured`] builds rectangle meshes
-//! (cases A-C); [`io`] reads and writes the mesh JSON contract and exports Gmsh and VTK files;
+//! [`pipeline`] chains them with per-stage timings; [`io`] reads and writes the mesh JSON contract and exports Gmsh and VTK files;
 //! [`preview`] draws each stage; [`body`] builds a procedural human body so everything runs
 //! without an outside model file.
 //!
@@ -40,7 +39,6 @@ pub mod preview;
 pub mod quality;
 pub mod simplify;
 mod stopwatch;
-pub mod structured;
 pub mod triangulate;
 pub mod types;
 

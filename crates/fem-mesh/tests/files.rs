@@ -1,4 +1,4 @@
-//! Mesh files and structured meshes: small snapshot tests of the mesh JSON, Gmsh and VTK text,
+//! Mesh files: small snapshot tests of the mesh JSON, Gmsh and VTK text,
 //! round trips, the reader's validation errors, atomic writes, and property tests feeding the
 //! mesh JSON reader arbitrary and mutated bytes (an error, never a panic).
 
@@ -8,11 +8,21 @@ use fem_mesh::Mesh2;
 use fem_mesh::io::{
     mesh_to_gmsh, mesh_to_json, mesh_to_vtk, parse_mesh_json, read_mesh_json, write_mesh_json,
 };
-use fem_mesh::structured::{Diagonal, RectangleParams, rectangle};
 use proptest::prelude::*;
 
+/// Two unit cells side by side, each split along its `/` diagonal.
 fn two_cells() -> Mesh2 {
-    rectangle(&RectangleParams::new(2.0, 1.0, 2, 1)).unwrap()
+    Mesh2 {
+        vertices: vec![
+            [0.0, 0.0],
+            [1.0, 0.0],
+            [2.0, 0.0],
+            [0.0, 1.0],
+            [1.0, 1.0],
+            [2.0, 1.0],
+        ],
+        triangles: vec![[0, 1, 4], [0, 4, 3], [1, 2, 5], [1, 5, 4]],
+    }
 }
 
 #[test]
@@ -53,47 +63,15 @@ fn snapshot_gmsh_and_vtk() {
 }
 
 #[test]
-fn every_diagonal_pattern_tiles_the_rectangle_counter_clockwise() {
-    for (diagonal, per_cell) in [
-        (Diagonal::Right, 2),
-        (Diagonal::Left, 2),
-        (Diagonal::Alternating, 2),
-        (Diagonal::Crossed, 4),
-    ] {
-        let params = RectangleParams {
-            diagonal,
-            ..RectangleParams::new(5.0, 1.0, 10, 3)
-        };
-        let mesh = rectangle(&params).unwrap();
-        assert_eq!(mesh.triangles.len(), 10 * 3 * per_cell, "{diagonal:?}");
-        for t in 0..mesh.triangles.len() {
-            assert!(mesh.signed_area(t) > 0.0, "{diagonal:?} triangle {t}");
-        }
-        assert!((mesh.area() - 5.0).abs() < 1e-12, "{diagonal:?}");
-        assert_eq!(mesh.edge_components(), 1);
-    }
-    // The two plain patterns differ only in their diagonals.
-    let left = rectangle(&RectangleParams {
-        diagonal: Diagonal::Left,
-        ..RectangleParams::new(1.0, 1.0, 1, 1)
-    })
-    .unwrap();
-    assert_eq!(left.triangles, vec![[0, 1, 2], [1, 3, 2]]);
-    assert!(rectangle(&RectangleParams::new(1.0, 1.0, 0, 1)).is_err());
-    assert!(rectangle(&RectangleParams::new(-1.0, 1.0, 1, 1)).is_err());
-}
-
-#[test]
 fn json_round_trip_is_exact_and_atomic() {
     let dir = std::env::temp_dir().join(format!("fem-mesh-files-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let path = dir.join("mesh.json");
-    let mesh = rectangle(&RectangleParams {
-        origin: [0.1, -0.3],
-        diagonal: Diagonal::Crossed,
-        ..RectangleParams::new(1.0 / 3.0, 0.7, 3, 2)
-    })
-    .unwrap();
+    // Coordinates with no short decimal form, which the writer must round-trip exactly.
+    let mut mesh = two_cells();
+    for p in &mut mesh.vertices {
+        *p = [0.1 + p[0] / 3.0, -0.3 + 0.7 * p[1]];
+    }
     write_mesh_json(&path, &mesh).unwrap();
     assert_eq!(read_mesh_json(&path).unwrap(), mesh);
     // No temporary file left behind.

@@ -19,6 +19,7 @@ pub(crate) const LUT_SIZE: usize = 1024;
 
 /// A colormap for scalar fields.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Hash)]
+#[non_exhaustive]
 pub enum Colormap {
     /// Perceptually uniform blue-green-yellow (matplotlib's default).
     #[default]

@@ -4,6 +4,7 @@ use std::path::{Path, PathBuf};
 
 /// Everything that can go wrong while drawing or writing a picture.
 #[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
 pub enum RenderError {
     /// The input cannot be drawn (lengths disagree, an index is out of range, a size is zero...).
     #[error("{0}")]

@@ -11,11 +11,11 @@ use fem_core::energy::{AnyEnergy, Energy};
 use fem_core::math::{Real, Vec2};
 use fem_core::mesh::Mesh;
 use fem_core::stress::VonMisesFormula;
-use fem_core::{Lame, Material, PlaneModel};
+use fem_core::structured::{RectangleParams, rectangle};
+use fem_core::{Lame, Material};
 use fem_mesh::Mesh2;
 use fem_mesh::camera::{Camera, Projection};
 use fem_mesh::pipeline::{PipelineParams, mesh_surface};
-use fem_mesh::structured::{RectangleParams, rectangle};
 use fem_mesh::triangulate::TriangulateParams;
 use fem_solvers::{
     AnyStepper, Clock, ContactParams, Ground, Model, ObstacleMotion, PrescribedMotion, Region,
@@ -94,15 +94,25 @@ pub fn build_mesh(scene: &LoadedScene, source: &dyn MeshSource) -> Result<Mesh, 
     // Where the triangles came from, for the final checks' message.
     let mut from = String::from("mesh");
     let mut mesh2: Mesh2 = match spec.kind.unwrap_or(MeshKind::Rectangle) {
-        MeshKind::Rectangle => rectangle(&RectangleParams {
-            origin: spec.origin.unwrap_or([0.0, 0.0]),
-            width: spec.width.unwrap_or(1.0),
-            height: spec.height.unwrap_or(1.0),
-            nx: spec.nx.unwrap_or(1),
-            ny: spec.ny.unwrap_or(1),
-            diagonal: spec.diagonal.unwrap_or_default(),
-        })
-        .map_err(mesh_err)?,
+        MeshKind::Rectangle => {
+            let mesh = rectangle(&RectangleParams {
+                origin: spec.origin.unwrap_or([0.0, 0.0]),
+                width: spec.width.unwrap_or(1.0),
+                height: spec.height.unwrap_or(1.0),
+                nx: spec.nx.unwrap_or(1),
+                ny: spec.ny.unwrap_or(1),
+                diagonal: spec.diagonal.unwrap_or_default(),
+            })
+            .map_err(|e| SceneError::Mesh(format!("{}: mesh: {e}", scene.origin)))?;
+            Mesh2 {
+                vertices: mesh.vertices().iter().map(|p| [p.x, p.y]).collect(),
+                triangles: mesh
+                    .triangles()
+                    .iter()
+                    .map(|t| t.map(|i| i as usize))
+                    .collect(),
+            }
+        }
         MeshKind::File => {
             let (name, bytes) = read_named(scene, source)?;
             from = format!("mesh.path = {name}");
@@ -204,10 +214,7 @@ pub fn lame(scene: &LoadedScene) -> Result<Lame, SceneError> {
 
 /// The von Mises formula matching the scene's plane model.
 pub fn von_mises_formula(scene: &LoadedScene) -> VonMisesFormula {
-    match scene.scene.material.plane {
-        PlaneModel::PlaneStrain => VonMisesFormula::PlaneStrain,
-        PlaneModel::PlaneStress => VonMisesFormula::PlaneStress,
-    }
+    VonMisesFormula::from(scene.scene.material.plane)
 }
 
 /// The scene's energy.

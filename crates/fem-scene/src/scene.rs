@@ -17,7 +17,7 @@ use std::str::FromStr;
 
 use fem_core::PlaneModel;
 use fem_core::energy::EnergyKind;
-use fem_mesh::structured::Diagonal;
+use fem_core::structured::Diagonal;
 use serde::{Deserialize, Serialize};
 
 use crate::error::SceneError;
@@ -107,6 +107,7 @@ fn default_gravity() -> [f64; 2] {
 /// How the mesh is made.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
+#[non_exhaustive]
 pub enum MeshKind {
     /// A structured rectangle (`width`, `height`, `nx`, `ny`, `diagonal`, `origin`).
     Rectangle,

@@ -21,7 +21,7 @@ fn newton_iteration(c: &mut Criterion) {
     group.sample_size(10);
     for size in [16_000, 64_000, 256_000] {
         let (nx, ny) = beam_cells_for(size);
-        let model = cantilever(beam_mesh(nx, ny).unwrap(), NeoHookean::new(lame)).unwrap();
+        let model = cantilever(beam_mesh(nx, ny).unwrap(), NeoHookean::new(lame).unwrap()).unwrap();
         // One iteration per call: the tolerance cannot be met, so the step stops after its
         // single allowed iteration and leaves the state unchanged (steady workload).
         let mut stepper = ImplicitStepper::new(

@@ -62,10 +62,10 @@ fn benches(c: &mut Criterion) {
     let lame = Material::new(1000.0, 0.3, 1.0)
         .unwrap()
         .lame(PlaneModel::PlaneStrain);
-    explicit(c, NeoHookean::new(lame));
-    explicit(c, Stvk::new(lame));
-    explicit(c, Corotational::new(lame));
-    let m = model(Stvk::new(lame));
+    explicit(c, NeoHookean::new(lame).unwrap());
+    explicit(c, Stvk::new(lame).unwrap());
+    explicit(c, Corotational::new(lame).unwrap());
+    let m = model(Stvk::new(lame).unwrap());
     bench_stepper(
         c,
         "pbd/stvk",

@@ -77,7 +77,7 @@ fn main() {
         if let Some(w) = stepper.time_step_check().warning() {
             eprintln!("warning: {w}");
         }
-        let tip = node_index(nx, 0, ny);
+        let tip = node_index(nx, 0, nx);
         let mut state = State::at_rest(&model);
         let mut row = Vec::new();
         let start = Instant::now();

@@ -38,7 +38,7 @@ fn main() {
     println!("|---|---|---|---|---|---|---|---|---|");
     for size in sizes {
         let (nx, ny) = beam_cells_for(size);
-        let model = cantilever(beam_mesh(nx, ny).unwrap(), NeoHookean::new(lame)).unwrap();
+        let model = cantilever(beam_mesh(nx, ny).unwrap(), NeoHookean::new(lame).unwrap()).unwrap();
         let start = Instant::now();
         let mut stepper = ImplicitStepper::new(
             &model,

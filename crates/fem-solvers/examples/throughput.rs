@@ -182,17 +182,17 @@ fn main() {
             print!(" {:>10}", 2 * nx * ny);
         }
         println!();
-        explicit_row(NeoHookean::new(lame), &o);
-        explicit_row(Stvk::new(lame), &o);
-        explicit_row(Corotational::new(lame), &o);
+        explicit_row(NeoHookean::new(lame).unwrap(), &o);
+        explicit_row(Stvk::new(lame).unwrap(), &o);
+        explicit_row(Corotational::new(lame).unwrap(), &o);
         explicit_row(StableNeoHookean::new(lame).unwrap(), &o);
-        explicit_row(Linear::new(lame), &o);
+        explicit_row(Linear::new(lame).unwrap(), &o);
         if o.pbd {
             println!(
                 "position-based (StVK, coloured Gauss-Seidel, 10 iterations, from a 1% stretch), time per iteration"
             );
             for &n in &o.sizes {
-                let m = model(Stvk::new(lame), n);
+                let m = model(Stvk::new(lame).unwrap(), n);
                 let p = PbdStepper::new(&m, PbdParams::default()).unwrap();
                 let x = XpbdStepper::new(&m, XpbdParams::default()).unwrap();
                 let it = PbdParams::default().iterations as f64;

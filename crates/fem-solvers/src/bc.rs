@@ -13,6 +13,7 @@ use crate::error::{SolverError, check_finite_vec};
 
 /// A set of mesh vertices.
 #[derive(Clone, Debug, PartialEq)]
+#[non_exhaustive]
 pub enum Region {
     /// Explicit vertex indices.
     Vertices(Vec<usize>),

@@ -135,12 +135,11 @@ impl VertexColouring {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::testing::rectangle_mesh;
-    use fem_core::math::Vec2;
+    use crate::testing::{RectangleParams, rectangle};
 
     #[test]
     fn no_two_triangles_of_a_colour_share_a_vertex() {
-        let mesh = rectangle_mesh(Vec2::zeros(), 5.0, 1.0, 17, 5).unwrap();
+        let mesh = rectangle(&RectangleParams::new(5.0, 1.0, 17, 5)).unwrap();
         let c = Colouring::greedy(&mesh);
         assert!(c.n_colours() <= 12, "{} colours", c.n_colours());
         for k in 0..c.n_colours() {
@@ -160,7 +159,7 @@ mod tests {
 
     #[test]
     fn no_two_vertices_of_a_colour_share_a_triangle_and_fixed_ones_are_left_out() {
-        let mesh = rectangle_mesh(Vec2::zeros(), 5.0, 1.0, 17, 5).unwrap();
+        let mesh = rectangle(&RectangleParams::new(5.0, 1.0, 17, 5)).unwrap();
         let free: Vec<bool> = (0..mesh.n_vertices()).map(|v| v % 5 != 0).collect();
         let c = VertexColouring::greedy(&mesh, &free);
         assert!(c.n_colours() <= 8, "{} colours", c.n_colours());

@@ -112,6 +112,7 @@ impl ContactParams {
 
 /// How an obstacle moves.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[non_exhaustive]
 pub enum ObstacleMotion {
     /// Never moves.
     Static,

@@ -5,7 +5,11 @@
 use fem_core::math::{Real, readable};
 
 /// Why a model could not be built or a step could not be taken.
+///
+/// fem-core's errors convert into it (`From`), so one `?` carries a program from the material
+/// to the last step. New variants may be added.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[non_exhaustive]
 pub enum SolverError {
     /// A parameter is outside its domain.
     #[error("{field} = {value}: {rule}")]
@@ -123,6 +127,15 @@ pub enum SolverError {
         /// Obstacle index.
         body: usize,
     },
+    /// The mesh was rejected ([`Mesh::new`](fem_core::mesh::Mesh::new)); `?` converts it.
+    #[error("mesh: {0}")]
+    Mesh(#[from] fem_core::mesh::MeshError),
+    /// A material constant or Lamé parameter was rejected; `?` converts it.
+    #[error(transparent)]
+    Material(#[from] fem_core::MaterialError),
+    /// An energy could not be chosen or built; `?` converts it.
+    #[error(transparent)]
+    Energy(#[from] fem_core::energy::EnergyError),
 }
 
 impl SolverError {

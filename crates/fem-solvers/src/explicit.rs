@@ -36,6 +36,7 @@ use crate::{Stepper, check_step_inputs};
 /// Which explicit update. Serde names: `symplectic`, `forward-euler`.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[non_exhaustive]
 pub enum ExplicitScheme {
     /// `x' = x + dt v'` (uses the new velocity). Default.
     #[default]

@@ -37,6 +37,7 @@ use crate::error::{SolverError, check_finite_vec};
 
 /// How a grab holds the body.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[non_exhaustive]
 pub enum GrabModel {
     /// The anchor vertices are kinematic and follow the target rigidly.
     Pin,

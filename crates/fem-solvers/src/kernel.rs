@@ -375,7 +375,7 @@ pub(crate) fn elastic_energy<E: Energy>(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::testing::rectangle_mesh;
+    use crate::testing::{RectangleParams, rectangle};
     use fem_core::PlaneModel;
     use fem_core::energy::EnergyKind;
     use fem_core::material::Material;
@@ -403,7 +403,7 @@ mod tests {
     #[test]
     fn batched_and_parallel_forces_equal_the_per_element_loop_bit_for_bit() {
         // 2 x 47 x 23 = 2162 triangles: two scatter-plan chunks and a partial last block.
-        let mesh = rectangle_mesh(Vec2::zeros(), 5.0, 1.0, 47, 23).unwrap();
+        let mesh = rectangle(&RectangleParams::new(5.0, 1.0, 47, 23)).unwrap();
         assert_eq!(mesh.n_triangles() % LANES, 2);
         let lame = Material::new(1000.0, 0.3, 1.0)
             .unwrap()

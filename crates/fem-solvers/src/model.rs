@@ -2,8 +2,11 @@
 //! lumped masses, boundary conditions, loads, obstacles), plus the stability guard.
 //!
 //! A model is built once and then passed by shared reference to a stepper's `step`, together
-//! with a mutable [`State`](crate::State). Every setter validates its input and returns a
-//! one-line [`SolverError`] naming the field and the value. Between steps a model may change:
+//! with a mutable [`State`](crate::State). Every setter takes `&mut self` and returns
+//! `&mut Self`, so calls chain (`model.set_standard_gravity().pin(&left)?.pin(&right)?`);
+//! one that validates its input returns it in a `Result` whose error is a one-line
+//! [`SolverError`] naming the field and the value. [`Model::add_obstacle`] alone returns the
+//! new obstacle's index, by which the state refers to it. Between steps a model may change:
 //! a drag attachment ([`Model::grab`], [`Model::move_grab`], [`Model::release`]) or a new
 //! boundary condition or obstacle. Each structural change gives the model a new
 //! [`Model::layout`]; a stepper that precomputed something from the old one (a factorisation,
@@ -31,7 +34,7 @@ fn fresh_layout() -> u64 {
     NEXT.fetch_add(1, Ordering::Relaxed)
 }
 
-/// Standard gravity used by [`Model::with_standard_gravity`], m/s^2 (the paper's cases use 9.8).
+/// Standard gravity used by [`Model::set_standard_gravity`], m/s^2 (the paper's cases use 9.8).
 pub const STANDARD_GRAVITY: Real = 9.8;
 
 /// Mesh, energy, masses, boundary conditions, loads and obstacles of one simulation.
@@ -144,7 +147,7 @@ impl<E: Energy> Model<E> {
     }
 
     /// Gravity `[0, -9.8]` m/s^2.
-    pub fn with_standard_gravity(mut self) -> Self {
+    pub fn set_standard_gravity(&mut self) -> &mut Self {
         self.gravity = Vec2::new(0.0, -STANDARD_GRAVITY);
         self
     }
@@ -194,9 +197,13 @@ impl<E: Energy> Model<E> {
     /// Add a uniform traction `traction` (force per unit boundary length per unit thickness,
     /// N/m^2 = Pa) on every boundary edge whose two end vertices lie in `region`, distributed
     /// consistently: an edge of length `L` gives `traction L / 2` to each end (exact for linear
-    /// elements under a uniform traction). The nodal forces join the external forces. Returns
-    /// the number of edges loaded; fails when the region holds no boundary edge.
-    pub fn add_traction(&mut self, region: &Region, traction: Vec2) -> Result<usize, SolverError> {
+    /// elements under a uniform traction). The nodal forces join the external forces. Fails
+    /// when the region holds no boundary edge.
+    pub fn add_traction(
+        &mut self,
+        region: &Region,
+        traction: Vec2,
+    ) -> Result<&mut Self, SolverError> {
         let field = format!("tractions[{}]", self.tractions);
         check_finite_vec(&field, traction)?;
         let inside = region.select(self.mesh.vertices(), &field)?;
@@ -229,7 +236,7 @@ impl<E: Energy> Model<E> {
             }
         }
         self.tractions += 1;
-        Ok(edges)
+        Ok(self)
     }
 
     /// Set (or, with `None`, remove) the ground half-space.
@@ -475,8 +482,9 @@ impl<E: Energy> Model<E> {
     /// Run the explicit force kernel under `isa` (or the widest supported set below it). The
     /// results are the same bits under every set (see [`fem_core::simd`]); only the speed
     /// changes.
-    pub fn set_isa(&mut self, isa: Isa) {
+    pub fn set_isa(&mut self, isa: Isa) -> &mut Self {
         self.isa = isa;
+        self
     }
 
     /// The mesh.

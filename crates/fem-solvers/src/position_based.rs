@@ -23,8 +23,8 @@
 //!   gradient where the sweep was), so the limit is one of many points satisfying the
 //!   constraints and depends on the ordering. Measured on case A (20 x 4 cells, `\` diagonals,
 //!   Neo-Hookean), tip after 30 steps of 10 ms: implicit Euler -0.6100 m; XPBD Gauss-Seidel
-//!   -0.6193, coloured -0.6111, Jacobi -0.6116, each unchanged (to 3e-7 m) from 1000 to 8000
-//!   iterations: 1 to 9 mm from implicit Euler, and ordering-dependent.
+//!   -0.6156, coloured -0.6134, Jacobi -0.6116, each unchanged (to 3e-7 m) from 1000 to 8000
+//!   iterations: 1.6 to 5.6 mm from implicit Euler, and ordering-dependent.
 //! - **XPBD, literal form** (the paper's text): `C = a psi` with the same update. Then
 //!   `C^2 / (2 alpha)` is `(a psi)^2 / (2 alpha)`, quartic in the strain: `alpha` (units 1/J
 //!   per unit thickness) has no material meaning and the response depends on the mesh.
@@ -157,6 +157,7 @@ impl Default for PbdParams {
     derive(serde::Serialize, serde::Deserialize),
     serde(rename_all = "kebab-case")
 )]
+#[non_exhaustive]
 pub enum XpbdForm {
     /// `C = sqrt(2 a psi)`: compliance 1 reproduces the elastic energy. Default.
     #[default]
@@ -173,6 +174,7 @@ pub enum XpbdForm {
     derive(serde::Serialize, serde::Deserialize),
     serde(rename_all = "kebab-case")
 )]
+#[non_exhaustive]
 pub enum XpbdSchedule {
     /// `substeps` substeps of `iterations` sweeps each, as given. Default.
     #[default]

@@ -131,6 +131,7 @@ macro_rules! registry {
         /// A solver, by name. [`SolverKind::ALL`] lists them in table order; the first
         /// (explicit) is the default.
         #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+        #[non_exhaustive]
         pub enum SolverKind {
             $(
                 #[doc = concat!("See [`", stringify!($ty), "`].")]
@@ -169,6 +170,7 @@ macro_rules! registry {
         /// With the `serde` feature it serialises as the inner struct's fields alone
         /// (untagged); read it with `SolverParams::deserialize_as`, given the kind.
         #[derive(Clone, Debug, PartialEq)]
+        #[non_exhaustive]
         pub enum SolverParams {
             $(
                 #[doc = concat!("Parameters of [`", stringify!($ty), "`].")]
@@ -252,6 +254,7 @@ macro_rules! registry {
         /// Any solver's stepper, chosen at run time ([`SolverParams::build`]). Each call
         /// dispatches to the concrete stepper, whose kernels are monomorphised.
         #[derive(Debug)]
+        #[non_exhaustive]
         pub enum AnyStepper {
             $(
                 #[doc = concat!("See [`", stringify!($ty), "`].")]

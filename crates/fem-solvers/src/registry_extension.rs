@@ -136,9 +136,14 @@ mod tests {
         let lame = Material::new(1000.0, 0.3, 1.0)
             .unwrap()
             .lame(PlaneModel::PlaneStrain);
-        Model::with_total_mass(beam_mesh(10, 2).unwrap(), NeoHookean::new(lame), 1.0)
-            .unwrap()
-            .with_standard_gravity()
+        let mut model = Model::with_total_mass(
+            beam_mesh(10, 2).unwrap(),
+            NeoHookean::new(lame).unwrap(),
+            1.0,
+        )
+        .unwrap();
+        model.set_standard_gravity();
+        model
     }
 
     #[test]

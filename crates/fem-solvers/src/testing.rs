@@ -1,15 +1,17 @@
-//! Structured rectangle meshes for tests, benches and examples (the case A beam and friends).
+//! The case A beam and models built on it, for tests, benches and examples.
 //!
-//! The layout is the one the cross-framework benchmarks of the explicit kernel use (so their
-//! timings compare the same mesh): node `(i, j)` sits at
-//! `origin + (i * width / nx, j * height / ny)` with index `i * (ny + 1) + j`, and each cell is
-//! split along its `(i, j)-(i + 1, j + 1)` diagonal into the counter-clockwise triangles
-//! `(a, b, c)` and `(a, c, d)`, with `a = (i, j)`, `b = (i + 1, j)`, `c = (i + 1, j + 1)`,
-//! `d = (i, j + 1)`. Triangles are numbered cell by cell, `i` slowest.
+//! The meshes come from the framework's one rectangle generator,
+//! [`fem_core::structured::rectangle`] (re-exported here): node `(i, j)` sits at
+//! `origin + (width i / nx, height j / ny)` with index `j (nx + 1) + i` ([`node_index`]), and
+//! with the default [`Diagonal::Right`] each cell is split along its `(i, j)-(i + 1, j + 1)`
+//! diagonal into the counter-clockwise triangles `(a, b, c)` and `(a, c, d)`, with
+//! `a = (i, j)`, `b = (i + 1, j)`, `c = (i + 1, j + 1)`, `d = (i, j + 1)`. Triangles are
+//! numbered cell by cell, row by row.
 
 use fem_core::energy::Energy;
 use fem_core::math::{Real, Vec2};
 use fem_core::mesh::{Mesh, MeshError};
+pub use fem_core::structured::{Diagonal, RectangleParams, rectangle};
 
 use crate::{Model, Region, SolverError, State};
 
@@ -18,52 +20,15 @@ pub const BEAM_LENGTH: Real = 5.0;
 /// Height of the case A beam, m.
 pub const BEAM_HEIGHT: Real = 1.0;
 
-/// A `width` x `height` rectangle with its lower-left corner at `origin`, split into
-/// `nx` x `ny` cells of two triangles each (`2 nx ny` triangles).
-pub fn rectangle_mesh(
-    origin: Vec2,
-    width: Real,
-    height: Real,
-    nx: usize,
-    ny: usize,
-) -> Result<Mesh, MeshError> {
-    let node = |i: usize, j: usize| (i * (ny + 1) + j) as u32;
-    let mut vertices = Vec::with_capacity((nx + 1) * (ny + 1));
-    for i in 0..=nx {
-        for j in 0..=ny {
-            vertices.push(
-                origin
-                    + Vec2::new(
-                        i as Real * (width / nx as Real),
-                        j as Real * (height / ny as Real),
-                    ),
-            );
-        }
-    }
-    let mut triangles = Vec::with_capacity(2 * nx * ny);
-    for i in 0..nx {
-        for j in 0..ny {
-            let (a, b, c, d) = (
-                node(i, j),
-                node(i + 1, j),
-                node(i + 1, j + 1),
-                node(i, j + 1),
-            );
-            triangles.push([a, b, c]);
-            triangles.push([a, c, d]);
-        }
-    }
-    Mesh::new(vertices, triangles)
-}
-
 /// The case A beam (5 m x 1 m, lower-left corner at the origin) with `nx` x `ny` cells.
 pub fn beam_mesh(nx: usize, ny: usize) -> Result<Mesh, MeshError> {
-    rectangle_mesh(Vec2::zeros(), BEAM_LENGTH, BEAM_HEIGHT, nx, ny)
+    rectangle(&RectangleParams::new(BEAM_LENGTH, BEAM_HEIGHT, nx, ny))
 }
 
-/// The index of node `(i, j)` in a mesh from [`rectangle_mesh`] with `ny` rows of cells.
-pub fn node_index(i: usize, j: usize, ny: usize) -> usize {
-    i * (ny + 1) + j
+/// The index of grid node `(i, j)` in a rectangle mesh with `nx` columns of cells:
+/// `j (nx + 1) + i` (as [`RectangleParams::node`]).
+pub fn node_index(i: usize, j: usize, nx: usize) -> usize {
+    j * (nx + 1) + i
 }
 
 /// Cells `(nx, ny)` of a beam mesh with about `triangles` triangles and the 5:1 aspect of the
@@ -76,7 +41,8 @@ pub fn beam_cells_for(triangles: usize) -> (usize, usize) {
 /// The case A cantilever on a beam mesh (from [`beam_mesh`]): total mass 1 kg, standard
 /// gravity, left edge (`x = 0`) pinned.
 pub fn cantilever<E: Energy>(mesh: Mesh, energy: E) -> Result<Model<E>, SolverError> {
-    let mut model = Model::with_total_mass(mesh, energy, 1.0)?.with_standard_gravity();
+    let mut model = Model::with_total_mass(mesh, energy, 1.0)?;
+    model.set_standard_gravity();
     model.pin(&Region::in_box(
         Vec2::new(0.0, 0.0),
         Vec2::new(0.0, BEAM_HEIGHT),
@@ -105,9 +71,10 @@ mod tests {
         let m = beam_mesh(20, 4).unwrap();
         assert_eq!(m.n_vertices(), 21 * 5);
         assert_eq!(m.n_triangles(), 160);
-        assert_eq!(m.vertices()[node_index(20, 0, 4)], Vec2::new(5.0, 0.0));
-        assert_eq!(m.triangles()[0], [0, 5, 6]);
-        assert_eq!(m.triangles()[1], [0, 6, 1]);
+        assert_eq!(m.vertices()[node_index(20, 0, 20)], Vec2::new(5.0, 0.0));
+        assert_eq!(m.vertices()[node_index(3, 4, 20)], Vec2::new(0.75, 1.0));
+        assert_eq!(m.triangles()[0], [0, 1, 22]);
+        assert_eq!(m.triangles()[1], [0, 22, 21]);
         assert!((m.area() - 5.0).abs() < 1e-12);
         assert_eq!(beam_cells_for(64_000), (400, 80));
     }

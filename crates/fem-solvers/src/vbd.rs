@@ -97,6 +97,7 @@ const LOCAL_HALVINGS: usize = 8;
     derive(serde::Serialize, serde::Deserialize),
     serde(rename_all = "kebab-case")
 )]
+#[non_exhaustive]
 pub enum VbdInit {
     /// The positions at the start of the step.
     Previous,

@@ -15,7 +15,7 @@
 //! resists inversion (weakly: it stays bounded at `J = 0`). At a scaled reflection
 //! `F = [[a, b], [b, -a]]` the rotation is not unique and the identity is used.
 
-use super::Energy;
+use super::{Energy, EnergyError};
 use crate::material::Lame;
 use crate::math::{Mat2, Mat4, Real, Vec2, linear_map_matrix};
 use crate::polar::Polar2;
@@ -28,12 +28,14 @@ pub struct Corotational {
 }
 
 impl Corotational {
-    /// With the given Lamé parameters.
-    pub fn new(lame: Lame) -> Self {
-        Corotational {
-            mu: lame.mu,
-            lambda: lame.lambda,
-        }
+    /// With the given Lamé parameters. Never fails (a validated [`Lame`] is in this energy's
+    /// domain); it returns a `Result` because every energy is built the same way, and
+    /// [`StableNeoHookean::new`](super::StableNeoHookean::new) can fail.
+    pub fn new(lame: Lame) -> Result<Self, EnergyError> {
+        Ok(Corotational {
+            mu: lame.mu(),
+            lambda: lame.lambda(),
+        })
     }
 }
 

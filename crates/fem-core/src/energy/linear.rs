@@ -10,7 +10,7 @@
 //! under gravity with E = 1000 Pa). **Inverted elements (`J <= 0`)**: finite, no special
 //! treatment; the energy does not know about orientation.
 
-use super::Energy;
+use super::{Energy, EnergyError};
 use crate::material::Lame;
 use crate::math::{Mat2, Mat4, Real, Vec2, linear_map_matrix, sym};
 
@@ -23,16 +23,18 @@ pub struct Linear {
 }
 
 impl Linear {
-    /// With the given Lamé parameters.
-    pub fn new(lame: Lame) -> Self {
-        let (mu, lambda) = (lame.mu, lame.lambda);
+    /// With the given Lamé parameters. Never fails (a validated [`Lame`] is in this energy's
+    /// domain); it returns a `Result` because every energy is built the same way, and
+    /// [`StableNeoHookean::new`](super::StableNeoHookean::new) can fail.
+    pub fn new(lame: Lame) -> Result<Self, EnergyError> {
+        let (mu, lambda) = (lame.mu(), lame.lambda());
         let tangent =
             linear_map_matrix(|df| sym(df) * (2.0 * mu) + Mat2::identity() * (lambda * df.trace()));
-        Linear {
+        Ok(Linear {
             mu,
             lambda,
             tangent,
-        }
+        })
     }
 }
 

@@ -145,6 +145,7 @@ pub fn project_psd(m: &Mat4) -> Mat4 {
 
 /// The energies by name, for the command line, scene files and runtime selection.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[non_exhaustive]
 pub enum EnergyKind {
     /// Saint Venant-Kirchhoff.
     Stvk,
@@ -182,13 +183,13 @@ impl EnergyKind {
     /// Build the energy with the given Lamé parameters.
     pub fn build(self, lame: Lame) -> Result<AnyEnergy, EnergyError> {
         Ok(match self {
-            EnergyKind::Stvk => AnyEnergy::Stvk(Stvk::new(lame)),
-            EnergyKind::Corotational => AnyEnergy::Corotational(Corotational::new(lame)),
-            EnergyKind::NeoHookean => AnyEnergy::NeoHookean(NeoHookean::new(lame)),
+            EnergyKind::Stvk => AnyEnergy::Stvk(Stvk::new(lame)?),
+            EnergyKind::Corotational => AnyEnergy::Corotational(Corotational::new(lame)?),
+            EnergyKind::NeoHookean => AnyEnergy::NeoHookean(NeoHookean::new(lame)?),
             EnergyKind::StableNeoHookean => {
                 AnyEnergy::StableNeoHookean(StableNeoHookean::new(lame)?)
             }
-            EnergyKind::Linear => AnyEnergy::Linear(Linear::new(lame)),
+            EnergyKind::Linear => AnyEnergy::Linear(Linear::new(lame)?),
         })
     }
 }
@@ -228,6 +229,7 @@ impl<'de> serde::Deserialize<'de> for EnergyKind {
 
 /// Errors raised when choosing or building an energy.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[non_exhaustive]
 pub enum EnergyError {
     /// The name is not one of [`EnergyKind::ALL`].
     #[error(

@@ -18,7 +18,7 @@
 //! element (and a line search rejects the step). Use `stable-neo-hookean` when elements may
 //! invert.
 
-use super::Energy;
+use super::{Energy, EnergyError};
 use crate::material::Lame;
 use crate::math::{Mat2, Mat2Lanes, Mat4, Real, Vec2, cofactor, linear_map_matrix, ln, outer};
 
@@ -30,12 +30,14 @@ pub struct NeoHookean {
 }
 
 impl NeoHookean {
-    /// With the given Lamé parameters.
-    pub fn new(lame: Lame) -> Self {
-        NeoHookean {
-            mu: lame.mu,
-            lambda: lame.lambda,
-        }
+    /// With the given Lamé parameters. Never fails (a validated [`Lame`] is in this energy's
+    /// domain); it returns a `Result` because every energy is built the same way, and
+    /// [`StableNeoHookean::new`](super::StableNeoHookean::new) can fail.
+    pub fn new(lame: Lame) -> Result<Self, EnergyError> {
+        Ok(NeoHookean {
+            mu: lame.mu(),
+            lambda: lame.lambda(),
+        })
     }
 }
 

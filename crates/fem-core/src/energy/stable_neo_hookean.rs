@@ -41,14 +41,15 @@ impl StableNeoHookean {
     /// With the material's Lamé parameters, re-parameterised as in the module docs. Fails when
     /// `lambda + 2/3 mu <= 0` (possible only for plane stress with `nu <= -1/2`).
     pub fn new(lame: Lame) -> Result<Self, EnergyError> {
-        let mu = 1.5 * lame.mu;
-        let lambda = lame.lambda + 2.0 / 3.0 * lame.mu;
+        let mu = 1.5 * lame.mu();
+        let lambda = lame.lambda() + 2.0 / 3.0 * lame.mu();
         if !(lambda > 0.0 && mu > 0.0) {
             return Err(EnergyError::Parameters {
                 energy: "stable-neo-hookean",
                 message: format!(
                     "needs lambda + 2/3 mu > 0, got lambda = {}, mu = {}",
-                    lame.lambda, lame.mu
+                    lame.lambda(),
+                    lame.mu()
                 ),
             });
         }

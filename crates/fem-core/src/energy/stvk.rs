@@ -12,7 +12,7 @@
 //! resistance to inversion, and elements pushed through `J = 0` can stay inverted. Its stiffness
 //! also softens under strong compression, which is why it needs smaller time steps at high E.
 
-use super::Energy;
+use super::{Energy, EnergyError};
 use crate::material::Lame;
 use crate::math::{Mat2, Mat4, Real, Vec2, ddot, linear_map_matrix, sym};
 
@@ -24,12 +24,14 @@ pub struct Stvk {
 }
 
 impl Stvk {
-    /// With the given Lamé parameters.
-    pub fn new(lame: Lame) -> Self {
-        Stvk {
-            mu: lame.mu,
-            lambda: lame.lambda,
-        }
+    /// With the given Lamé parameters. Never fails (a validated [`Lame`] is in this energy's
+    /// domain); it returns a `Result` because every energy is built the same way, and
+    /// [`StableNeoHookean::new`](super::StableNeoHookean::new) can fail.
+    pub fn new(lame: Lame) -> Result<Self, EnergyError> {
+        Ok(Stvk {
+            mu: lame.mu(),
+            lambda: lame.lambda(),
+        })
     }
 
     #[inline]

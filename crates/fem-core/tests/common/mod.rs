@@ -45,43 +45,15 @@ impl Rng {
     }
 }
 
-/// The diagonal each quad of a structured mesh is split along.
-#[derive(Clone, Copy, Debug)]
-pub enum Diagonal {
-    /// From lower-left to upper-right in every quad.
-    Right,
-    /// Alternating in a checkerboard (the "union jack"-free criss-cross pattern).
-    Alternating,
-}
+pub use fem_core::structured::Diagonal;
 
-/// A structured `nx x ny` quad mesh of `[0, lx] x [0, ly]`, each quad split into two
-/// counter-clockwise triangles. Node `(i, j)` has index `i (ny + 1) + j`.
+/// The structured `nx x ny` mesh of `[0, lx] x [0, ly]` ([`fem_core::structured::rectangle`]).
 pub fn rectangle(lx: Real, ly: Real, nx: usize, ny: usize, diagonal: Diagonal) -> Mesh {
-    let mut vertices = Vec::with_capacity((nx + 1) * (ny + 1));
-    for i in 0..=nx {
-        for j in 0..=ny {
-            vertices.push(Vec2::new(
-                i as Real * lx / nx as Real,
-                j as Real * ly / ny as Real,
-            ));
-        }
-    }
-    let id = |i: usize, j: usize| (i * (ny + 1) + j) as u32;
-    let mut triangles = Vec::with_capacity(2 * nx * ny);
-    for i in 0..nx {
-        for j in 0..ny {
-            let (a, b, c, d) = (id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j + 1));
-            let flip = matches!(diagonal, Diagonal::Alternating) && (i + j) % 2 == 1;
-            if flip {
-                triangles.push([a, b, d]);
-                triangles.push([b, c, d]);
-            } else {
-                triangles.push([a, b, c]);
-                triangles.push([a, c, d]);
-            }
-        }
-    }
-    Mesh::new(vertices, triangles).expect("structured rectangle meshes are valid")
+    let params = fem_core::structured::RectangleParams {
+        diagonal,
+        ..fem_core::structured::RectangleParams::new(lx, ly, nx, ny)
+    };
+    fem_core::structured::rectangle(&params).expect("structured rectangle meshes are valid")
 }
 
 /// Rest positions moved by a smooth, large, non-affine deformation plus a small random jitter,

@@ -31,6 +31,7 @@ pub struct LoadOptions {
 
 /// Model file formats understood by [`load_model`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
 pub enum ModelFormat {
     /// Wavefront OBJ.
     Obj,

@@ -118,7 +118,8 @@ fn run_until<E: Energy>(
 /// (a) for time-stepping solvers: exact discrete free fall.
 fn free_fall(kind: SolverKind) {
     let g = 9.8;
-    let model = beam(kind, 10, 2, 1000.0).with_standard_gravity();
+    let mut model = beam(kind, 10, 2, 1000.0);
+    model.set_standard_gravity();
     let dt = 1e-3;
     let mut stepper = build(kind, &model, dt, |_| {});
     let mut state = State::at_rest(&model);
@@ -138,7 +139,8 @@ fn free_fall(kind: SolverKind) {
 
 /// (a) for load-factor solvers: an anchored cantilever reaches equilibrium at `t = 1`.
 fn equilibrium(kind: SolverKind) {
-    let model = anchored(kind, 20, 4, 1000.0).with_standard_gravity();
+    let mut model = anchored(kind, 20, 4, 1000.0);
+    model.set_standard_gravity();
     let mut stepper = build(kind, &model, 0.0, |_| {});
     let mut state = State::at_rest(&model);
     let mut steps = 0;
@@ -220,7 +222,8 @@ fn never_non_finite(kind: SolverKind, survives: Option<&str>) {
 
 /// (c) Bit-identical states on 1, 2 and 4 threads.
 fn thread_independent(kind: SolverKind) {
-    let mut model = anchored(kind, 160, 32, 1000.0).with_standard_gravity();
+    let mut model = anchored(kind, 160, 32, 1000.0);
+    model.set_standard_gravity();
     if kind.capabilities().contact {
         model.set_ground(Some(Ground::horizontal(-0.01))).unwrap();
         model
@@ -330,7 +333,8 @@ fn rollout(kind: SolverKind, tolerance: Real, why: &str) {
     // A cantilever sagging under gravity, stiff enough (E = 1e4 Pa) to swing back within the
     // run: at 0.4 s its tip has gone down and come back up, so a solver with the wrong
     // stiffness or the wrong inertia is out of phase with the reference.
-    let model = anchored(kind, 20, 4, 1e4).with_standard_gravity();
+    let mut model = anchored(kind, 20, 4, 1e4);
+    model.set_standard_gravity();
     let distance = match kind.capabilities().clock {
         Clock::Time => {
             let (dt, t_end) = (2.5e-4, 0.4);

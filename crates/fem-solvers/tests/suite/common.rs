@@ -8,7 +8,7 @@ use fem_core::material::{Lame, Material};
 use fem_core::math::{Real, Vec2};
 use fem_core::mesh::Mesh;
 use fem_solvers::Model;
-use fem_solvers::testing::{BEAM_HEIGHT, BEAM_LENGTH, beam_mesh, node_index};
+use fem_solvers::testing::{BEAM_HEIGHT, BEAM_LENGTH, RectangleParams, beam_mesh, rectangle};
 
 /// Case A material: E = 1000 Pa, nu = 0.3, plane strain.
 pub fn case_a_lame() -> Lame {
@@ -40,57 +40,17 @@ pub fn bits(x: &[Vec2]) -> Vec<[u64; 2]> {
 }
 
 /// How each cell of a structured beam is split.
-#[derive(Clone, Copy, Debug)]
-pub enum Pattern {
-    /// `/` in every cell.
-    Right,
-    /// `\` in every cell.
-    Left,
-    /// `/` and `\` in a checkerboard.
-    Alternating,
-    /// Four triangles around the cell centre.
-    Crossed,
-}
+pub use fem_solvers::testing::Diagonal as Pattern;
 
-pub const PATTERNS: [Pattern; 4] = [
-    Pattern::Right,
-    Pattern::Left,
-    Pattern::Alternating,
-    Pattern::Crossed,
-];
+pub const PATTERNS: [Pattern; 4] = Pattern::ALL;
 
 /// The case A beam with `nx` x `ny` cells split by `pattern`; grid vertex `(i, j)` has the
-/// index of [`node_index`], cell centres (crossed) follow the grid.
+/// index of [`node_index`](fem_solvers::testing::node_index), cell centres (crossed) follow
+/// the grid.
 pub fn beam(nx: usize, ny: usize, pattern: Pattern) -> Mesh {
-    let (hx, hy) = (BEAM_LENGTH / nx as Real, BEAM_HEIGHT / ny as Real);
-    let mut vertices = Vec::new();
-    for i in 0..=nx {
-        for j in 0..=ny {
-            vertices.push(Vec2::new(i as Real * hx, j as Real * hy));
-        }
-    }
-    let mut triangles = Vec::new();
-    for i in 0..nx {
-        for j in 0..ny {
-            let n = |i, j| node_index(i, j, ny) as u32;
-            let (a, b, c, d) = (n(i, j), n(i + 1, j), n(i + 1, j + 1), n(i, j + 1));
-            let right = match pattern {
-                Pattern::Right => true,
-                Pattern::Left => false,
-                Pattern::Alternating => (i + j) % 2 == 0,
-                Pattern::Crossed => {
-                    let m = vertices.len() as u32;
-                    vertices.push(Vec2::new((i as Real + 0.5) * hx, (j as Real + 0.5) * hy));
-                    triangles.extend([[a, b, m], [b, c, m], [c, d, m], [d, a, m]]);
-                    continue;
-                }
-            };
-            if right {
-                triangles.extend([[a, b, c], [a, c, d]]);
-            } else {
-                triangles.extend([[a, b, d], [b, c, d]]);
-            }
-        }
-    }
-    Mesh::new(vertices, triangles).unwrap()
+    rectangle(&RectangleParams {
+        diagonal: pattern,
+        ..RectangleParams::new(BEAM_LENGTH, BEAM_HEIGHT, nx, ny)
+    })
+    .unwrap()
 }

@@ -100,7 +100,7 @@ fn assert_thread_independent<E: Energy, S: Stepper + Clone + Send + Sync>(
 
 #[test]
 fn pbd_is_bit_identical_across_thread_counts_in_every_other_ordering() {
-    let (model, state) = scene(Stvk::new(case_a_lame()));
+    let (model, state) = scene(Stvk::new(case_a_lame()).unwrap());
     for (ordering, relaxation) in [(Ordering::GaussSeidel, 1.0), (Ordering::Jacobi, 1.5)] {
         let s = PbdStepper::new(
             &model,
@@ -118,7 +118,7 @@ fn pbd_is_bit_identical_across_thread_counts_in_every_other_ordering() {
 
 #[test]
 fn xpbd_is_bit_identical_across_thread_counts_in_every_other_ordering_and_form() {
-    let (model, state) = scene(NeoHookean::new(case_a_lame()));
+    let (model, state) = scene(NeoHookean::new(case_a_lame()).unwrap());
     for (ordering, form) in [
         (Ordering::GaussSeidel, XpbdForm::Consistent),
         (Ordering::Coloured, XpbdForm::Literal),

@@ -57,8 +57,8 @@ fn no_triangle_inverts_under_energies_that_forbid_it() {
         let energy = kind.build(case_a_lame()).unwrap();
         let mut model =
             Model::with_total_mass(fem_solvers::testing::beam_mesh(10, 2).unwrap(), energy, 1.0)
-                .unwrap()
-                .with_standard_gravity();
+                .unwrap();
+        model.set_standard_gravity();
         model
             .pin(&Region::in_box(Vec2::new(0.0, 0.0), Vec2::new(0.0, 1.0)))
             .unwrap();

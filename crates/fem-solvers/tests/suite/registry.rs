@@ -57,7 +57,7 @@ fn errors_name_the_scene_field() {
             "dt = -1: must be a finite number > 0",
         ),
     ];
-    let model = cantilever(NeoHookean::new(case_a_lame()), 10, 2);
+    let model = cantilever(NeoHookean::new(case_a_lame()).unwrap(), 10, 2);
     for (kind, spoil, message) in cases {
         let mut p = kind.default_params();
         spoil(&mut p);
@@ -74,9 +74,9 @@ fn errors_name_the_scene_field() {
 
 #[test]
 fn any_stepper_knows_its_kind_and_warns_only_for_an_unstable_explicit_step() {
-    let model = cantilever(NeoHookean::new(case_a_lame()), 10, 2);
+    let model = cantilever(NeoHookean::new(case_a_lame()).unwrap(), 10, 2);
     // Projective Dynamics runs the co-rotational energy only.
-    let corotational = cantilever(Corotational::new(case_a_lame()), 10, 2);
+    let corotational = cantilever(Corotational::new(case_a_lame()).unwrap(), 10, 2);
     for kind in SolverKind::ALL {
         let mut p = kind.default_params();
         p.set_dt(1.0);
@@ -207,9 +207,14 @@ fn a_stepper_uses_the_model_it_is_given_not_the_one_it_was_built_for() {
     use fem_solvers::{Model, Region, State};
     let lame = case_a_lame();
     let free = || {
-        Model::with_total_mass(beam_mesh(10, 2).unwrap(), Corotational::new(lame), 1.0)
-            .unwrap()
-            .with_standard_gravity()
+        let mut model = Model::with_total_mass(
+            beam_mesh(10, 2).unwrap(),
+            Corotational::new(lame).unwrap(),
+            1.0,
+        )
+        .unwrap();
+        model.set_standard_gravity();
+        model
     };
     let mut pinned = free();
     pinned

@@ -8,7 +8,7 @@
 use fem_core::energy::{Linear, NeoHookean};
 use fem_core::math::{Real, Vec2};
 use fem_core::{Material, PlaneModel};
-use fem_solvers::testing::{node_index, rectangle_mesh};
+use fem_solvers::testing::{RectangleParams, node_index, rectangle};
 use fem_solvers::{
     Model, NewtonParams, PrescribedMotion, Region, SolverError, State, StaticParams, StaticSolver,
     StaticStepper, Stepper,
@@ -31,18 +31,21 @@ fn timoshenko(p: Real) -> Real {
 
 /// The tip deflection (midline node of the free end) of a `10 ny x ny` mesh under end load
 /// `p`, and the number of Newton iterations.
-fn deflection<F: Fn(fem_core::Lame) -> En, En: fem_core::energy::Energy>(
+fn deflection<
+    F: Fn(fem_core::Lame) -> Result<En, fem_core::energy::EnergyError>,
+    En: fem_core::energy::Energy,
+>(
     ny: usize,
     p: Real,
     energy: F,
     load_steps: usize,
 ) -> (Real, usize) {
     let nx = 10 * ny;
-    let mesh = rectangle_mesh(Vec2::zeros(), L, H, nx, ny).unwrap();
+    let mesh = rectangle(&RectangleParams::new(L, H, nx, ny)).unwrap();
     let lame = Material::new(E, NU, 1.0)
         .unwrap()
         .lame(PlaneModel::PlaneStrain);
-    let mut model = Model::with_density(mesh, energy(lame), 1.0).unwrap();
+    let mut model = Model::with_density(mesh, energy(lame).unwrap(), 1.0).unwrap();
     model
         .pin(&Region::in_box(Vec2::new(0.0, 0.0), Vec2::new(0.0, H)))
         .unwrap();
@@ -62,7 +65,7 @@ fn deflection<F: Fn(fem_core::Lame) -> En, En: fem_core::energy::Energy>(
     .unwrap();
     let mut state = State::at_rest(&model);
     let report = solver.solve(&model, &mut state).unwrap();
-    let tip = node_index(nx, ny / 2, ny);
+    let tip = node_index(nx, ny / 2, nx);
     (-state.displacement(&model, tip).y, report.iterations())
 }
 
@@ -136,7 +139,8 @@ fn large_loads_with_load_stepping_and_geometric_stiffening() {
 /// refuse a model with a ground, in one line naming the field.
 #[test]
 fn static_and_implicit_reject_contact() {
-    let mut model = crate::common::cantilever(Linear::new(crate::common::case_a_lame()), 20, 4);
+    let mut model =
+        crate::common::cantilever(Linear::new(crate::common::case_a_lame()).unwrap(), 20, 4);
     model
         .set_ground(Some(fem_solvers::Ground::horizontal(-1.0)))
         .unwrap();
@@ -148,11 +152,11 @@ fn static_and_implicit_reject_contact() {
 
 /// The Neo-Hookean cantilever of [`deflection`] (`10 ny x ny` cells) under end load `p`.
 fn loaded_cantilever(ny: usize, p: Real) -> Model<NeoHookean> {
-    let mesh = rectangle_mesh(Vec2::zeros(), L, H, 10 * ny, ny).unwrap();
+    let mesh = rectangle(&RectangleParams::new(L, H, 10 * ny, ny)).unwrap();
     let lame = Material::new(E, NU, 1.0)
         .unwrap()
         .lame(PlaneModel::PlaneStrain);
-    let mut model = Model::with_density(mesh, NeoHookean::new(lame), 1.0).unwrap();
+    let mut model = Model::with_density(mesh, NeoHookean::new(lame).unwrap(), 1.0).unwrap();
     model
         .pin(&Region::in_box(Vec2::new(0.0, 0.0), Vec2::new(0.0, H)))
         .unwrap();
@@ -201,8 +205,8 @@ fn prescribed_vertices_move_with_the_load_factor() {
     let lame = Material::new(E, NU, 1.0)
         .unwrap()
         .lame(PlaneModel::PlaneStrain);
-    let mesh = rectangle_mesh(Vec2::zeros(), 2.0, 1.0, 8, 4).unwrap();
-    let mut model = Model::with_density(mesh, NeoHookean::new(lame), 1.0).unwrap();
+    let mesh = rectangle(&RectangleParams::new(2.0, 1.0, 8, 4)).unwrap();
+    let mut model = Model::with_density(mesh, NeoHookean::new(lame).unwrap(), 1.0).unwrap();
     model
         .pin(&Region::in_box(Vec2::new(0.0, 0.0), Vec2::new(0.0, 1.0)))
         .unwrap();
@@ -246,7 +250,7 @@ fn prescribed_vertices_move_with_the_load_factor() {
         }
     }
     // The free vertices followed: the middle of the bar moved about half as far.
-    let mid = node_index(4, 2, 4);
+    let mid = node_index(4, 2, 8);
     let u = state.displacement(&model, mid).x;
     assert!((u - 0.25).abs() < 0.02, "{u}");
 }
@@ -291,7 +295,7 @@ fn failed_increments_are_halved_then_the_run_stops_at_the_last_equilibrium() {
         stepper.halvings(),
         state.step,
     );
-    let tip = node_index(80, 4, 8);
+    let tip = node_index(80, 4, 80);
     let (reference, _) = deflection(8, 1000.0, NeoHookean::new, 10);
     let d = -state.displacement(&model, tip).y;
     assert!((d - reference).abs() < 1e-6, "{d} vs {reference}");

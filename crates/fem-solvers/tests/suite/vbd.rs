@@ -245,7 +245,11 @@ fn chebyshev_keeps_the_converged_step_and_a_good_rho_speeds_it_up() {
 /// rank-one update `det(F + s g^T) = det F + s . cof(F) g`), and no triangle ever inverts.
 #[test]
 fn steps_that_would_invert_a_neo_hookean_triangle_are_halved() {
-    let model = cantilever(fem_core::energy::NeoHookean::new(case_a_lame()), 10, 2);
+    let model = cantilever(
+        fem_core::energy::NeoHookean::new(case_a_lame()).unwrap(),
+        10,
+        2,
+    );
     let mut stepper = VbdStepper::new(
         &model,
         VbdParams {

@@ -1,0 +1,165 @@
+//! The structured triangle mesh of an axis-aligned rectangle (cases A-C: the cantilever and the
+//! bar), with a selectable diagonal pattern: the framework's one rectangle generator (scenes,
+//! tests, benchmarks and `fem_solvers::testing` all use it, so a node has the same index
+//! everywhere).
+//!
+//! ```
+//! use fem_core::structured::{Diagonal, RectangleParams, rectangle};
+//! let params = RectangleParams { diagonal: Diagonal::Alternating, ..RectangleParams::new(5.0, 1.0, 10, 2) };
+//! let mesh = rectangle(&params).unwrap();
+//! assert_eq!(mesh.n_triangles(), 40);
+//! // Node (i, j) = (10, 2) is the upper-right corner.
+//! assert_eq!(mesh.vertices()[params.node(10, 2)], nalgebra::Vector2::new(5.0, 1.0));
+//! ```
+
+use crate::math::{Real, Vec2};
+use crate::mesh::{Mesh, MeshError};
+
+/// How each grid cell is split into triangles. Named `right`, `left`, `alternating` and
+/// `crossed` in files (with the `serde` feature).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(rename_all = "kebab-case")
+)]
+#[non_exhaustive]
+pub enum Diagonal {
+    /// Every cell split along the diagonal from its lower-left to its upper-right corner (`/`).
+    /// Default.
+    #[default]
+    Right,
+    /// Every cell split along the diagonal from its lower-right to its upper-left corner (`\`).
+    Left,
+    /// Alternating `/` and `\` in a checkerboard (a symmetric "union jack" pattern over 2x2 cells).
+    Alternating,
+    /// Four triangles per cell around an extra vertex at the cell centre (isotropic, twice the
+    /// triangles).
+    Crossed,
+}
+
+impl Diagonal {
+    /// Every pattern.
+    pub const ALL: [Diagonal; 4] = [
+        Diagonal::Right,
+        Diagonal::Left,
+        Diagonal::Alternating,
+        Diagonal::Crossed,
+    ];
+
+    /// The name in files (`right`, `left`, `alternating`, `crossed`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Diagonal::Right => "right",
+            Diagonal::Left => "left",
+            Diagonal::Alternating => "alternating",
+            Diagonal::Crossed => "crossed",
+        }
+    }
+}
+
+/// Parameters of [`rectangle`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RectangleParams {
+    /// Lower-left corner (metres). Default (0, 0).
+    pub origin: [Real; 2],
+    /// Width along x (metres, > 0).
+    pub width: Real,
+    /// Height along y (metres, > 0).
+    pub height: Real,
+    /// Cells along x (>= 1).
+    pub nx: usize,
+    /// Cells along y (>= 1).
+    pub ny: usize,
+    /// Diagonal pattern. Default [`Diagonal::Right`].
+    pub diagonal: Diagonal,
+}
+
+impl RectangleParams {
+    /// A `width` x `height` rectangle at the origin with `nx` x `ny` cells and `/` diagonals.
+    pub fn new(width: Real, height: Real, nx: usize, ny: usize) -> Self {
+        Self {
+            origin: [0.0, 0.0],
+            width,
+            height,
+            nx,
+            ny,
+            diagonal: Diagonal::Right,
+        }
+    }
+
+    /// The index of grid node `(i, j)` (column `i` in `0..=nx`, row `j` in `0..=ny`):
+    /// `j (nx + 1) + i`, rows from the bottom, x fastest.
+    pub fn node(&self, i: usize, j: usize) -> usize {
+        j * (self.nx + 1) + i
+    }
+}
+
+/// Most cells accepted by [`rectangle`] (guards against accidental huge allocations).
+const MAX_CELLS: usize = 50_000_000;
+
+/// Builds the structured mesh. Grid vertex `(i, j)` (column `i`, row `j`) has index
+/// `j * (nx + 1) + i` ([`RectangleParams::node`]); [`Diagonal::Crossed`] appends the cell
+/// centres after the grid vertices. Triangles are counter-clockwise, numbered cell by cell,
+/// row by row from the bottom. Fails (naming the value) on a non-positive or non-finite size,
+/// a non-finite origin, or a cell count outside `1..=50_000_000` in total.
+pub fn rectangle(params: &RectangleParams) -> Result<Mesh, MeshError> {
+    let RectangleParams {
+        origin,
+        width,
+        height,
+        nx,
+        ny,
+        diagonal,
+    } = *params;
+    let invalid = |message: String| Err(MeshError::Rectangle(message));
+    if !(width.is_finite() && width > 0.0 && height.is_finite() && height > 0.0) {
+        return invalid(format!(
+            "width and height must be finite and > 0, got {width} x {height}"
+        ));
+    }
+    if !(origin[0].is_finite() && origin[1].is_finite()) {
+        return invalid(format!("origin {origin:?} is not finite"));
+    }
+    if nx == 0 || ny == 0 || nx.saturating_mul(ny) > MAX_CELLS {
+        return invalid(format!(
+            "cell counts must be in 1..={MAX_CELLS} in total, got {nx} x {ny}"
+        ));
+    }
+    let centres = if diagonal == Diagonal::Crossed { nx * ny } else { 0 };
+    let mut vertices = Vec::with_capacity((nx + 1) * (ny + 1) + centres);
+    for j in 0..=ny {
+        for i in 0..=nx {
+            vertices.push(Vec2::new(
+                origin[0] + width * i as Real / nx as Real,
+                origin[1] + height * j as Real / ny as Real,
+            ));
+        }
+    }
+    let per_cell = if diagonal == Diagonal::Crossed { 4 } else { 2 };
+    let mut triangles: Vec<[u32; 3]> = Vec::with_capacity(per_cell * nx * ny);
+    let id = |i: usize, j: usize| (j * (nx + 1) + i) as u32;
+    for j in 0..ny {
+        for i in 0..nx {
+            let (a, b, c, d) = (id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j + 1));
+            let right = match diagonal {
+                Diagonal::Right => true,
+                Diagonal::Left => false,
+                Diagonal::Alternating => (i + j) % 2 == 0,
+                Diagonal::Crossed => {
+                    let m = vertices.len() as u32;
+                    let (pa, pc) = (vertices[a as usize], vertices[c as usize]);
+                    vertices.push(Vec2::new(0.5 * (pa.x + pc.x), 0.5 * (pa.y + pc.y)));
+                    triangles.extend([[a, b, m], [b, c, m], [c, d, m], [d, a, m]]);
+                    continue;
+                }
+            };
+            if right {
+                triangles.extend([[a, b, c], [a, c, d]]);
+            } else {
+                triangles.extend([[a, b, d], [b, c, d]]);
+            }
+        }
+    }
+    Mesh::new(vertices, triangles)
+}
