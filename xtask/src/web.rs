@@ -94,12 +94,16 @@ fn build() -> Result<PathBuf, String> {
             ));
         }
     }
+    // Without the `parallel` feature: the browser gives the module one thread, and rayon is
+    // left out. The check below compares it with the native build on rayon's pool, so it also
+    // shows that the feature changes no bit.
     let args = [
         "build",
         "--release",
         "-p",
         "fem-web",
         "--lib",
+        "--no-default-features",
         "--target",
         TARGET,
     ];
@@ -191,7 +195,10 @@ fn check_against_native(site: &Path) -> Result<(), String> {
                 "WebAssembly and native states differ: {line}: wasm {wasm}, native {here}"
             ));
         }
-        eprintln!("same state natively and in WebAssembly: {line}: {here}");
+        eprintln!(
+            "same state natively (parallel, {} threads) and in WebAssembly (sequential): {line}: {here}",
+            std::thread::available_parallelism().map_or(1, |n| n.get())
+        );
     }
     Ok(())
 }

@@ -38,3 +38,13 @@ pub mod report;
 pub mod run;
 pub mod sweep;
 pub mod table1;
+
+/// The types most programs need, in one import: `use fem_cases::prelude::*;`.
+///
+/// Running a scene with files, pictures and outputs ([`run_scene`](run::run_scene)), the
+/// report, and the scene layer's prelude (loading scenes, [`SceneError`](fem_scene::SceneError)).
+pub mod prelude {
+    pub use crate::report::{ReportOptions, write_report};
+    pub use crate::run::{RunOptions, RunResult, Summary, run_scene};
+    pub use fem_scene::prelude::{LoadedScene, Scene, SceneError, load_case, parse_scene};
+}

@@ -13,7 +13,7 @@
 //! Hot paths do not allocate once their [`Scratch`] (and [`Stiffness`] pattern) has been sized
 //! by the first call.
 
-use rayon::prelude::*;
+use crate::par::prelude::*;
 
 use crate::element::Tri3;
 use crate::energy::Energy;
@@ -130,7 +130,7 @@ pub fn populate_forces<E: Energy>(
     f: &mut [Vec2],
     scratch: &mut Scratch,
 ) -> AssemblyReport {
-    if rayon::current_num_threads() == 1 {
+    if crate::par::current_num_threads() == 1 {
         return populate_forces_serial(mesh, energy, x, f);
     }
     check_len(mesh, x, "forces", f.len());
@@ -373,7 +373,7 @@ pub fn populate_stiffness<E: Energy>(
     k: &mut Stiffness,
     scratch: &mut Scratch,
 ) -> AssemblyReport {
-    if rayon::current_num_threads() == 1 {
+    if crate::par::current_num_threads() == 1 {
         return populate_stiffness_serial(mesh, energy, x, tangent, k);
     }
     check_len(mesh, x, "stiffness", k.matrix.n / 2);

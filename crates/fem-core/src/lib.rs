@@ -51,6 +51,7 @@ pub mod material;
 pub mod math;
 pub mod mesh;
 mod overlap;
+pub mod par;
 pub mod partition;
 pub mod polar;
 pub mod simd;
@@ -58,3 +59,27 @@ pub mod stress;
 pub mod structured;
 
 pub use material::{Lame, Material, MaterialError, PlaneModel};
+
+/// The nalgebra this crate is built on (0.35): its `Vector2` is [`math::Vec2`]. Use it instead
+/// of a nalgebra dependency of your own, so the versions cannot differ.
+pub use nalgebra as na;
+
+/// The types most programs need, in one import: `use fem_core::prelude::*;`.
+///
+/// The materials and Lamé parameters, the energies (trait, kinds and the five types), the mesh,
+/// the rectangle generator, the von Mises formula, the scalar and vector types, and nalgebra
+/// as `na`. Error types other than [`MaterialError`] and
+/// [`EnergyError`](energy::EnergyError) stay in their modules: their names repeat in the
+/// crates above (`fem_core::mesh::MeshError` is not `fem_mesh::MeshError`).
+pub mod prelude {
+    pub use crate::energy::{
+        AnyEnergy, Corotational, Energy, EnergyError, EnergyKind, Linear, NeoHookean,
+        StableNeoHookean, Stvk,
+    };
+    pub use crate::material::{Lame, Material, MaterialError, PlaneModel};
+    pub use crate::math::{Mat2, Real, Vec2};
+    pub use crate::mesh::Mesh;
+    pub use crate::na;
+    pub use crate::stress::VonMisesFormula;
+    pub use crate::structured::{Diagonal, RectangleParams, rectangle};
+}

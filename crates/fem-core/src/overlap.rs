@@ -13,7 +13,7 @@
 //!   the mesh), so triangles that merely touch (a vertex on an edge) pass. Expected cost
 //!   `O(n log n)`.
 
-use rayon::prelude::*;
+use crate::par::prelude::*;
 
 use crate::math::{Real, Vec2};
 

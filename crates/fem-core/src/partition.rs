@@ -18,7 +18,7 @@
 
 use std::ops::Add;
 
-use rayon::prelude::*;
+use crate::par::prelude::*;
 
 use crate::mesh::VertexAdjacency;
 
@@ -254,7 +254,7 @@ fn recurse<T: Send, S: Send>(
     let mid = (lo + hi) / 2;
     let (a, b) = owned.split_at_mut((plan.own_start[mid] - plan.own_start[lo]) as usize);
     let (sa, sb) = slots.split_at_mut((plan.slot_start[mid] - plan.slot_start[lo]) as usize);
-    rayon::join(
+    crate::par::join(
         || recurse(plan, lo, mid, a, sa, job),
         || recurse(plan, mid, hi, b, sb, job),
     );

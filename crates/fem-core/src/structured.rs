@@ -126,7 +126,11 @@ pub fn rectangle(params: &RectangleParams) -> Result<Mesh, MeshError> {
             "cell counts must be in 1..={MAX_CELLS} in total, got {nx} x {ny}"
         ));
     }
-    let centres = if diagonal == Diagonal::Crossed { nx * ny } else { 0 };
+    let centres = if diagonal == Diagonal::Crossed {
+        nx * ny
+    } else {
+        0
+    };
     let mut vertices = Vec::with_capacity((nx + 1) * (ny + 1) + centres);
     for j in 0..=ny {
         for i in 0..=nx {

@@ -44,3 +44,20 @@ pub mod types;
 
 pub use error::{MeshError, Result};
 pub use types::{Mesh2, PolygonWithHoles, Surface3};
+
+/// The types most programs need, in one import: `use fem_mesh::prelude::*;`.
+///
+/// The pipeline (`mesh_surface`, `mesh_model_file` and their parameters and output), the
+/// procedural body, the mesh and surface types, the mesh JSON reader and writer, and the
+/// crate's error.
+pub mod prelude {
+    pub use crate::alpha::AlphaParams;
+    pub use crate::body::human_body;
+    pub use crate::camera::{Camera, Projection};
+    pub use crate::io::{read_mesh_json, write_mesh_json};
+    pub use crate::pipeline::{PipelineOutput, PipelineParams, mesh_model_file, mesh_surface};
+    pub use crate::quality::QualityReport;
+    pub use crate::simplify::SimplifyParams;
+    pub use crate::triangulate::TriangulateParams;
+    pub use crate::{Mesh2, MeshError, PolygonWithHoles, Surface3};
+}

@@ -32,6 +32,19 @@ pub use colormap::Colormap;
 pub use frame::{FieldValues, FrameStyle, MeshView, Rendered};
 pub use gif::GifWriter;
 
+/// The types most programs need, in one import: `use fem_render::prelude::*;`.
+///
+/// Frames ([`render`](frame::render) and its inputs), images and colour maps, the GIF writer,
+/// the VTK writers, atomic writes and the crate's error.
+pub mod prelude {
+    pub use crate::frame::render;
+    pub use crate::vtk::{VtkFrame, write_vtu};
+    pub use crate::{
+        Colormap, FieldValues, FrameStyle, GifWriter, Image, MeshView, RenderError, Rendered, Rgba,
+        write_atomic,
+    };
+}
+
 /// The carried font, DejaVu Sans (Bitstream Vera licence, `assets/DejaVuSans-LICENSE.txt`).
 pub const FONT_TTF: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");
 

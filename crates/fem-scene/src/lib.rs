@@ -43,3 +43,15 @@ mod solver_spec;
 
 pub use error::SceneError;
 pub use solver_spec::SolverSpec;
+
+/// The types most programs need, in one import: `use fem_scene::prelude::*;`.
+///
+/// Loading a scene (a built-in case or a file's text), running it without a file system, its
+/// result and summary, and the crate's error.
+pub mod prelude {
+    pub use crate::SceneError;
+    pub use crate::build::{MeshSource, NoFiles};
+    pub use crate::cases::load_case;
+    pub use crate::run::{RunEnv, RunResult, Summary, run};
+    pub use crate::scene::{LoadedScene, Scene, parse_scene};
+}

@@ -527,7 +527,7 @@ fn run_with<E: Energy>(
         simulated_seconds: sim,
         vertices: mesh.n_vertices(),
         triangles: mesh.n_triangles(),
-        threads: rayon::current_num_threads(),
+        threads: fem_core::par::current_num_threads(),
         wall_seconds: wall,
         step_seconds: stepping,
         element_steps_per_second: if stepping > 0.0 {

@@ -20,8 +20,8 @@
 
 use fem_core::energy::Energy;
 use fem_core::math::{Real, Vec2, exp};
+use fem_core::par::prelude::*;
 use fem_core::simd::Isa;
-use rayon::prelude::*;
 
 use crate::commit::{Kinematic, StepEnd};
 use crate::contact::{ObstacleMotion, Wrench, accumulate_penalty_forces};
@@ -374,7 +374,7 @@ fn integrate_with<const SYMPLECTIC: bool>(
                 || update::<SYMPLECTIC>((dt, decay, g), xn, vn, x, v, f, w),
             )
         };
-    if rayon::current_num_threads() == 1 {
+    if fem_core::par::current_num_threads() == 1 {
         return chunk(x_new, v_new, x, v, f, w);
     }
     x_new

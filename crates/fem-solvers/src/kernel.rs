@@ -22,9 +22,9 @@ use std::sync::Mutex;
 use fem_core::energy::Energy;
 use fem_core::math::{LANES, Lanes, Mat2, Mat2Lanes, Real, Vec2};
 use fem_core::mesh::Mesh;
+use fem_core::par::prelude::*;
 use fem_core::partition::{ELEMENT_CHUNK as PLAN_CHUNK, Target, for_each_chunk};
 use fem_core::simd::Isa;
-use rayon::prelude::*;
 
 /// Elements per parallel task. Fixed, so the work split never depends on the thread count.
 pub(crate) const ELEMENT_CHUNK: usize = 1024;
@@ -323,7 +323,7 @@ pub(crate) fn forces<E: Energy>(
     slots: &mut Vec<Vec2>,
     isa: Isa,
 ) -> Inversion {
-    if rayon::current_num_threads() == 1 {
+    if fem_core::par::current_num_threads() == 1 {
         return forces_serial(energy, blocks, mesh, x, f, isa);
     }
     let plan = mesh.scatter_plan();

@@ -152,6 +152,28 @@ pub use state::State;
 pub use statics::{StaticParams, StaticReport, StaticSolver, StaticStepper};
 pub use vbd::{VbdInit, VbdParams, VbdStats, VbdStepper};
 
+/// fem-core, the layer below, as this crate depends on it: `fem_solvers::fem_core::...` (and
+/// nalgebra as `fem_solvers::fem_core::na`) needs no dependency of your own.
+pub use fem_core;
+
+/// The types most programs need, in one import: `use fem_solvers::prelude::*;`.
+///
+/// Everything of [`fem_core::prelude`] (materials, energies, the mesh, the rectangle
+/// generator, `na`), the model and its boundary conditions, contact and grabs, the state,
+/// the [`Stepper`] trait, every solver's stepper and parameters, the registry
+/// ([`SolverKind`], [`SolverParams`], [`AnyStepper`]) and [`SolverError`].
+pub mod prelude {
+    pub use crate::{
+        AnyStepper, BodyState, Clock, ContactParams, ExplicitParams, ExplicitScheme,
+        ExplicitStepper, Grab, GrabModel, Ground, ImplicitParams, ImplicitStepper, Model,
+        NewtonParams, ObstacleMotion, PbdParams, PbdStepper, PdParams, PdStepper, PrescribedMotion,
+        QuasiNewtonParams, QuasiNewtonStepper, Region, Solver, SolverError, SolverKind,
+        SolverParams, State, StaticParams, StaticSolver, StaticStepper, StepReport, Stepper,
+        VbdParams, VbdStepper, XpbdParams, XpbdStepper,
+    };
+    pub use fem_core::prelude::*;
+}
+
 /// A stepper: advances a [`State`] of a [`Model`] by one step of its clock ([`Clock`]): a
 /// time step, or for the static solver a load increment.
 pub trait Stepper {

@@ -66,7 +66,7 @@
 use fem_core::energy::Energy;
 use fem_core::math::{Real, Vec2, exp};
 use fem_core::mesh::VertexAdjacency;
-use rayon::prelude::*;
+use fem_core::par::prelude::*;
 
 use crate::colour::Colouring;
 use crate::commit::{Kinematic, StepEnd};
@@ -774,7 +774,7 @@ impl Engine {
         rule: Rule,
         psi_threshold: Real,
     ) -> SweepStats {
-        let parallel = rayon::current_num_threads() > 1;
+        let parallel = fem_core::par::current_num_threads() > 1;
         let mut total = SweepStats::EMPTY;
         match self.ordering {
             Ordering::GaussSeidel => {

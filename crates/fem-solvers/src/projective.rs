@@ -37,8 +37,8 @@
 
 use fem_core::energy::Energy;
 use fem_core::math::{Mat2, Real, Vec2, exp};
+use fem_core::par::prelude::*;
 use fem_core::polar::Polar2;
-use rayon::prelude::*;
 
 use crate::error::{SolverError, check_count, check_non_negative, check_positive, check_rho};
 use crate::implicit::external_load;

@@ -67,7 +67,7 @@
 use fem_core::energy::Energy;
 use fem_core::math::{Mat2, Real, Vec2, exp};
 use fem_core::mesh::VertexAdjacency;
-use rayon::prelude::*;
+use fem_core::par::prelude::*;
 
 use crate::colour::VertexColouring;
 use crate::commit::{Kinematic, StepEnd};

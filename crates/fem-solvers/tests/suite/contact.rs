@@ -13,7 +13,11 @@ use fem_solvers::{
 
 /// A 1 m x 1 m, 1 kg Neo-Hookean block (E = 10 kPa, 8 x 8 cells) 0.2 m above the ground y = 0.
 fn block() -> Model<NeoHookean> {
-    let mesh = rectangle(&RectangleParams { origin: [0.0, 0.2], ..RectangleParams::new(1.0, 1.0, 8, 8) }).unwrap();
+    let mesh = rectangle(&RectangleParams {
+        origin: [0.0, 0.2],
+        ..RectangleParams::new(1.0, 1.0, 8, 8)
+    })
+    .unwrap();
     let mut m = Model::with_total_mass(mesh, NeoHookean::new(lame(1e4)).unwrap(), 1.0).unwrap();
     m.set_standard_gravity();
     m.set_ground(Some(Ground::horizontal(0.0))).unwrap();

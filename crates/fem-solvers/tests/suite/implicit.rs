@@ -114,7 +114,10 @@ fn xpbd_approaches_implicit_euler_then_levels_off() {
     let (gaps, amplitude) = xpbd_gaps(1e-3, &iterations);
     eprintln!("dt 1 ms: gaps {gaps:?}, deflection {amplitude}");
     assert!(gaps[1] <= gaps[0] * 1.05, "{gaps:?}");
-    assert!(gaps[1..].windows(2).all(|w| w[1] <= w[0] * 1.001), "{gaps:?}");
+    assert!(
+        gaps[1..].windows(2).all(|w| w[1] <= w[0] * 1.001),
+        "{gaps:?}"
+    );
     assert!(gaps[3] < gaps[0] / 10.0, "{gaps:?}");
     assert!(gaps[4] < 0.01 * amplitude, "{gaps:?}");
     let (fine, fine_amplitude) = xpbd_gaps(2.5e-4, &[256]);
