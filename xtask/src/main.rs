@@ -21,6 +21,10 @@
 //!   build the interactive app for WebAssembly into `target/web/`, serve it on 127.0.0.1,
 //!   check that the module steps scenes to the same bits as the native build, and drive the
 //!   page in headless Chromium (`docs/interactive.md`).
+//! - `cargo xtask consumer`: build `examples/consumer` (the crates used as
+//!   `docs/using-the-crates.md` says, from a workspace of its own) natively and for WebAssembly,
+//!   run it natively and under node, and require the same report (explicit, implicit and
+//!   meshing, each checked by the program).
 //! - `cargo xtask goldens`: regenerate `fixtures/goldens/case-{a,b,c,d}.json`, checked by
 //!   `crates/fem-cases/tests/suite/goldens.rs`.
 //!
@@ -29,6 +33,7 @@
 
 mod bench_cases;
 mod bench_peers;
+mod consumer;
 mod figures;
 mod goldens;
 mod stability;
@@ -69,7 +74,10 @@ tasks:
                        it on http://127.0.0.1:8090/ (or N); --check: the module under node
                        reaches the native build's states bit for bit; --browser-test: drag
                        the body in headless Chromium (puppeteer-core from npm); --screenshot:
-                       save the test's picture";
+                       save the test's picture
+  consumer             build examples/consumer (the crates used as the docs say, outside the
+                       workspace) natively and for WebAssembly; run it natively and under
+                       node; the two reports (explicit, implicit, meshing) must be equal";
 
 fn cargo(args: &[&str]) -> Result<(), String> {
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".to_owned());
@@ -115,6 +123,7 @@ fn run(args: &[String]) -> Result<(), String> {
         Some("goldens") => goldens::run(&rest),
         Some("figures") => figures::run(&rest),
         Some("web") => web::run(&rest),
+        Some("consumer") => consumer::run(&rest),
         Some("help" | "-h" | "--help") => {
             println!("{USAGE}");
             Ok(())

@@ -19,7 +19,7 @@ use std::process::Command;
 
 use crate::util::{cargo_program, root};
 
-const TARGET: &str = "wasm32-unknown-unknown";
+pub const TARGET: &str = "wasm32-unknown-unknown";
 
 /// The built-in cases the bit-identity check runs with their own settings, and steps.
 const CASES: &[(&str, u64)] = &[("case-a", 500), ("case-d", 200)];
@@ -70,8 +70,8 @@ pub fn run(args: &[&str]) -> Result<(), String> {
     Ok(())
 }
 
-/// Install the target if missing, build the module, copy the page: the site's directory.
-fn build() -> Result<PathBuf, String> {
+/// Install the `wasm32-unknown-unknown` target through rustup when it is missing.
+pub fn install_target() -> Result<(), String> {
     let installed = Command::new("rustup")
         .args(["target", "list", "--installed"])
         .output()
@@ -94,6 +94,12 @@ fn build() -> Result<PathBuf, String> {
             ));
         }
     }
+    Ok(())
+}
+
+/// Install the target if missing, build the module, copy the page: the site's directory.
+fn build() -> Result<PathBuf, String> {
+    install_target()?;
     // Without the `parallel` feature: the browser gives the module one thread, and rayon is
     // left out. The check below compares it with the native build on rayon's pool, so it also
     // shows that the feature changes no bit.
@@ -265,7 +271,7 @@ fn browser_test(site: &Path, screenshot: Option<&str>) -> Result<(), String> {
 const PUPPETEER: &str = "puppeteer-core@23";
 
 /// A command's trimmed standard output, or an error with its standard error.
-fn output(cmd: &mut Command) -> Result<String, String> {
+pub fn output(cmd: &mut Command) -> Result<String, String> {
     let out = cmd
         .output()
         .map_err(|e| format!("cannot run {:?}: {e}", cmd.get_program()))?;

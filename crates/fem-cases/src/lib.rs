@@ -48,3 +48,8 @@ pub mod prelude {
     pub use crate::run::{RunOptions, RunResult, Summary, run_scene};
     pub use fem_scene::prelude::{LoadedScene, Scene, SceneError, load_case, parse_scene};
 }
+
+// The README's example runs as a doctest.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+struct ReadmeDoctests;

@@ -23,9 +23,12 @@
 //! Units are SI, per unit thickness. Notation (`F`, `P`, `J`, `psi`) follows continuum
 //! mechanics; fourth-order tensors act on the column-major `vec(F)` ([`math`]).
 //!
-//! Optional feature `serde`: [`EnergyKind`](energy::EnergyKind) and [`PlaneModel`] (de)serialise
-//! as their names (`"neo-hookean"`, `"plane-strain"`), so files and scenes name them as the
-//! command line does.
+//! Features: `parallel` (default) runs the assembly on rayon's thread pool ([`par`]; off, the
+//! same loops run in order, with the same bits); `serde` (de)serialises
+//! [`EnergyKind`](energy::EnergyKind), [`PlaneModel`] and
+//! [`Diagonal`](structured::Diagonal) as their names (`"neo-hookean"`, `"plane-strain"`), so
+//! files and scenes name them as the command line does. [`prelude`] has the types most programs
+//! need, [`na`] is the nalgebra this crate uses.
 //!
 //! What this crate does not know: time stepping, boundary conditions, contact, file formats
 //! and meshing. Those live in `fem-solvers`, `fem-mesh` and `fem-cases`.
@@ -44,6 +47,7 @@
 //! ```
 
 pub mod assembly;
+pub mod clock;
 pub mod element;
 pub mod energy;
 pub mod fd;
@@ -83,3 +87,8 @@ pub mod prelude {
     pub use crate::stress::VonMisesFormula;
     pub use crate::structured::{Diagonal, RectangleParams, rectangle};
 }
+
+// The README's example runs as a doctest.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+struct ReadmeDoctests;

@@ -30,6 +30,7 @@
 pub mod alpha;
 pub mod body;
 pub mod camera;
+pub mod clock;
 pub mod error;
 mod guard;
 pub mod io;
@@ -38,7 +39,7 @@ pub mod pipeline;
 pub mod preview;
 pub mod quality;
 pub mod simplify;
-mod stopwatch;
+
 pub mod triangulate;
 pub mod types;
 
@@ -61,3 +62,8 @@ pub mod prelude {
     pub use crate::triangulate::TriangulateParams;
     pub use crate::{Mesh2, MeshError, PolygonWithHoles, Surface3};
 }
+
+// The README's example runs as a doctest.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+struct ReadmeDoctests;

@@ -7,12 +7,12 @@ use std::time::Duration;
 
 use crate::alpha::{AlphaParams, AlphaShape, alpha_shape};
 use crate::camera::{Camera, ProjectionParams, project_points};
+use crate::clock::Stopwatch;
 use crate::error::{MeshError, Result};
 use crate::load::{LoadOptions, load_model};
 use crate::preview::Stages;
 use crate::quality::{QualityReport, boundary_hausdorff};
 use crate::simplify::{SimplifyParams, SimplifyReport, simplify_polygon};
-use crate::stopwatch::Stopwatch;
 use crate::triangulate::{TriangulateParams, TriangulateReport, triangulate};
 use crate::types::{Mesh2, PolygonWithHoles, Surface3};
 

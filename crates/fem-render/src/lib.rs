@@ -50,3 +50,8 @@ pub const FONT_TTF: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");
 
 /// The font family name to use in SVG output (the PNG path registers [`FONT_TTF`] under it).
 pub const FONT_FAMILY: &str = "DejaVu Sans";
+
+// The README's example runs as a doctest.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+struct ReadmeDoctests;

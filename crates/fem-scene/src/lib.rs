@@ -44,6 +44,17 @@ mod solver_spec;
 pub use error::SceneError;
 pub use solver_spec::SolverSpec;
 
+/// Supply the wall clock (seconds since any fixed origin) that every timing report below this
+/// crate reads: the solvers' ([`fem_core::clock`]) and the mesh pipeline's
+/// ([`fem_mesh::clock`]). Needed only on `wasm32-unknown-unknown`, which has no clock of its
+/// own (timings read zero there otherwise); natively it replaces `Instant`. Only the first call
+/// takes effect; it returns whether this one did.
+pub fn set_clock(clock: fn() -> f64) -> bool {
+    let core = fem_core::clock::set_clock(clock);
+    let mesh = fem_mesh::clock::set_clock(clock);
+    core && mesh
+}
+
 /// The types most programs need, in one import: `use fem_scene::prelude::*;`.
 ///
 /// Loading a scene (a built-in case or a file's text), running it without a file system, its
@@ -55,3 +66,14 @@ pub mod prelude {
     pub use crate::run::{RunEnv, RunResult, Summary, run};
     pub use crate::scene::{LoadedScene, Scene, parse_scene};
 }
+
+// The README's example runs as a doctest.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+struct ReadmeDoctests;
+
+// The programs of docs/using-the-crates.md (fem-core, fem-solvers, fem-mesh: all below this
+// crate) run as doctests.
+#[cfg(doctest)]
+#[doc = include_str!("../../../docs/using-the-crates.md")]
+struct UsingTheCrates;

@@ -123,7 +123,6 @@ mod registry_extension;
 mod report;
 mod state;
 pub mod statics;
-mod stopwatch;
 pub mod testing;
 pub mod vbd;
 
@@ -205,3 +204,8 @@ pub(crate) fn check_step_inputs<E: Energy>(
     }
     state.check_matches(model)
 }
+
+// The README's example runs as a doctest.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+struct ReadmeDoctests;

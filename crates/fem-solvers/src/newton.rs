@@ -44,7 +44,7 @@ use fem_core::mesh::Mesh;
 use crate::error::{SolverError, check_at_most, check_count};
 use crate::grab::{Spring, spring_energy, spring_of};
 use crate::limits;
-use crate::stopwatch::Stopwatch;
+use fem_core::clock::Stopwatch;
 
 /// Convergence and line-search settings of Newton's method.
 ///

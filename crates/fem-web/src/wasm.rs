@@ -10,9 +10,10 @@
 //!
 //! Functions that can fail return 0 on success and 1 on failure, with the one-line message in
 //! the text buffer. There is one app per page (the side-by-side panes are separate modules).
-// `#[unsafe(no_mangle)]` is how a function is exported from a WebAssembly module; it is the
-// only unsafe construct here (there is no unsafe block), hence this exception to the
-// workspace's `unsafe_code = "deny"`.
+// `#[unsafe(no_mangle)]` is how a function is exported from a WebAssembly module, and an
+// `unsafe extern` block how one is imported (the host's clock); they are the only unsafe
+// constructs here (there is no unsafe block), hence this exception to the workspace's
+// `unsafe_code = "deny"`.
 #![allow(unsafe_code)]
 
 use std::cell::RefCell;
@@ -28,6 +29,17 @@ thread_local! {
     static F32: RefCell<Vec<f32>> = const { RefCell::new(Vec::new()) };
     static U32: RefCell<Vec<u32>> = const { RefCell::new(Vec::new()) };
     static OUT_LEN: RefCell<usize> = const { RefCell::new(0) };
+}
+
+// The host's clock in milliseconds (the page's and node's `performance.now()`), so that the
+// solvers' and the mesh pipeline's timings are real in the browser.
+#[link(wasm_import_module = "env")]
+unsafe extern "C" {
+    safe fn now_ms() -> f64;
+}
+
+fn host_seconds() -> f64 {
+    now_ms() / 1000.0
 }
 
 fn set_text(s: &str) {
@@ -111,6 +123,7 @@ pub extern "C" fn out_len() -> usize {
 /// Load the built-in case named by the input.
 #[unsafe(no_mangle)]
 pub extern "C" fn load_case() -> u32 {
+    fem_scene::set_clock(host_seconds);
     let name = input_string();
     status(App::case(&name).map(|app| APP.with(|a| *a.borrow_mut() = Some(app))))
 }
@@ -133,6 +146,7 @@ pub extern "C" fn load_scene(name_len: usize) -> u32 {
     let all = input_string();
     let n = name_len.min(all.len());
     let (origin, text) = all.split_at(n);
+    fem_scene::set_clock(host_seconds);
     let files = FILES.with(|f| f.borrow().clone());
     status(App::scene(text, origin, files).map(|app| APP.with(|a| *a.borrow_mut() = Some(app))))
 }

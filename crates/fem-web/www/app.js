@@ -15,9 +15,12 @@ const dec = new TextDecoder();
 
 const module = await WebAssembly.compile(await (await fetch("fem_web.wasm")).arrayBuffer());
 
+// What the module imports: the clock its timings read, in milliseconds.
+const HOST = { env: { now_ms: () => performance.now() } };
+
 // One instance of the module and the helpers to talk to it.
 async function instance() {
-  const x = (await WebAssembly.instantiate(module, {})).exports;
+  const x = (await WebAssembly.instantiate(module, HOST)).exports;
   const io = {
     x,
     input(s) {

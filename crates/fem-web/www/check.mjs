@@ -6,7 +6,9 @@
 import { readFile } from "node:fs/promises";
 
 const [wasmPath, kase = "case-a", steps = "500", ...sets] = process.argv.slice(2);
-const { instance } = await WebAssembly.instantiate(await readFile(wasmPath), {});
+const { instance } = await WebAssembly.instantiate(await readFile(wasmPath), {
+  env: { now_ms: () => performance.now() },
+});
 const x = instance.exports;
 const enc = new TextEncoder();
 const dec = new TextDecoder();
