@@ -85,7 +85,7 @@ pub mod prelude {
     pub use crate::mesh::Mesh;
     pub use crate::na;
     pub use crate::stress::VonMisesFormula;
-    pub use crate::structured::{Diagonal, RectangleParams, rectangle};
+    pub use crate::structured::{Diagonal, NodeOrder, RectangleParams, rectangle};
 }
 
 // The README's example runs as a doctest.

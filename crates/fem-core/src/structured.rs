@@ -58,6 +58,25 @@ impl Diagonal {
     }
 }
 
+/// The order of the grid nodes, and of the cells, in a [`rectangle`] mesh.
+///
+/// The numbering decides which vertices sit close in memory, and so the speed of the loops
+/// over a long mesh (not their results, beyond the order of floating-point sums and of
+/// Gauss-Seidel sweeps): numbering across the short side first keeps each triangle's vertices
+/// near each other.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+#[non_exhaustive]
+pub enum NodeOrder {
+    /// Rows from the bottom, x fastest: node `(i, j)` is `j (nx + 1) + i`; cells row by row.
+    /// Default (the scenes' rectangles).
+    #[default]
+    XFastest,
+    /// Columns from the left, y fastest: node `(i, j)` is `i (ny + 1) + j`; cells column by
+    /// column (the layout of the cross-framework benchmark scripts; the better one for a mesh
+    /// much longer than high).
+    YFastest,
+}
+
 /// Parameters of [`rectangle`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RectangleParams {
@@ -73,6 +92,8 @@ pub struct RectangleParams {
     pub ny: usize,
     /// Diagonal pattern. Default [`Diagonal::Right`].
     pub diagonal: Diagonal,
+    /// Node numbering. Default [`NodeOrder::XFastest`].
+    pub order: NodeOrder,
 }
 
 impl RectangleParams {
@@ -85,13 +106,18 @@ impl RectangleParams {
             nx,
             ny,
             diagonal: Diagonal::Right,
+            order: NodeOrder::XFastest,
         }
     }
 
     /// The index of grid node `(i, j)` (column `i` in `0..=nx`, row `j` in `0..=ny`):
-    /// `j (nx + 1) + i`, rows from the bottom, x fastest.
+    /// `j (nx + 1) + i` with [`NodeOrder::XFastest`], `i (ny + 1) + j` with
+    /// [`NodeOrder::YFastest`].
     pub fn node(&self, i: usize, j: usize) -> usize {
-        j * (self.nx + 1) + i
+        match self.order {
+            NodeOrder::XFastest => j * (self.nx + 1) + i,
+            NodeOrder::YFastest => i * (self.ny + 1) + j,
+        }
     }
 }
 
@@ -99,9 +125,9 @@ impl RectangleParams {
 const MAX_CELLS: usize = 50_000_000;
 
 /// Builds the structured mesh. Grid vertex `(i, j)` (column `i`, row `j`) has index
-/// `j * (nx + 1) + i` ([`RectangleParams::node`]); [`Diagonal::Crossed`] appends the cell
-/// centres after the grid vertices. Triangles are counter-clockwise, numbered cell by cell,
-/// row by row from the bottom. Fails (naming the value) on a non-positive or non-finite size,
+/// [`RectangleParams::node`] (`j (nx + 1) + i` by default); [`Diagonal::Crossed`] appends the
+/// cell centres after the grid vertices. Triangles are counter-clockwise, numbered cell by
+/// cell in the same order as the nodes (by default row by row from the bottom). Fails (naming the value) on a non-positive or non-finite size,
 /// a non-finite origin, or a cell count outside `1..=50_000_000` in total.
 pub fn rectangle(params: &RectangleParams) -> Result<Mesh, MeshError> {
     let RectangleParams {
@@ -111,6 +137,7 @@ pub fn rectangle(params: &RectangleParams) -> Result<Mesh, MeshError> {
         nx,
         ny,
         diagonal,
+        order,
     } = *params;
     let invalid = |message: String| Err(MeshError::Rectangle(message));
     if !(width.is_finite() && width > 0.0 && height.is_finite() && height > 0.0) {
@@ -131,38 +158,42 @@ pub fn rectangle(params: &RectangleParams) -> Result<Mesh, MeshError> {
     } else {
         0
     };
+    // Grid nodes and cells in the numbering's order: the first index of the pair that runs
+    // fastest.
+    let grid = move |n_i: usize, n_j: usize| {
+        (0..n_i * n_j).map(move |k| match order {
+            NodeOrder::YFastest => (k / n_j, k % n_j),
+            NodeOrder::XFastest => (k % n_i, k / n_i),
+        })
+    };
     let mut vertices = Vec::with_capacity((nx + 1) * (ny + 1) + centres);
-    for j in 0..=ny {
-        for i in 0..=nx {
-            vertices.push(Vec2::new(
-                origin[0] + width * i as Real / nx as Real,
-                origin[1] + height * j as Real / ny as Real,
-            ));
-        }
+    for (i, j) in grid(nx + 1, ny + 1) {
+        vertices.push(Vec2::new(
+            origin[0] + width * i as Real / nx as Real,
+            origin[1] + height * j as Real / ny as Real,
+        ));
     }
     let per_cell = if diagonal == Diagonal::Crossed { 4 } else { 2 };
     let mut triangles: Vec<[u32; 3]> = Vec::with_capacity(per_cell * nx * ny);
-    let id = |i: usize, j: usize| (j * (nx + 1) + i) as u32;
-    for j in 0..ny {
-        for i in 0..nx {
-            let (a, b, c, d) = (id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j + 1));
-            let right = match diagonal {
-                Diagonal::Right => true,
-                Diagonal::Left => false,
-                Diagonal::Alternating => (i + j) % 2 == 0,
-                Diagonal::Crossed => {
-                    let m = vertices.len() as u32;
-                    let (pa, pc) = (vertices[a as usize], vertices[c as usize]);
-                    vertices.push(Vec2::new(0.5 * (pa.x + pc.x), 0.5 * (pa.y + pc.y)));
-                    triangles.extend([[a, b, m], [b, c, m], [c, d, m], [d, a, m]]);
-                    continue;
-                }
-            };
-            if right {
-                triangles.extend([[a, b, c], [a, c, d]]);
-            } else {
-                triangles.extend([[a, b, d], [b, c, d]]);
+    let id = |i: usize, j: usize| params.node(i, j) as u32;
+    for (i, j) in grid(nx, ny) {
+        let (a, b, c, d) = (id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j + 1));
+        let right = match diagonal {
+            Diagonal::Right => true,
+            Diagonal::Left => false,
+            Diagonal::Alternating => (i + j) % 2 == 0,
+            Diagonal::Crossed => {
+                let m = vertices.len() as u32;
+                let (pa, pc) = (vertices[a as usize], vertices[c as usize]);
+                vertices.push(Vec2::new(0.5 * (pa.x + pc.x), 0.5 * (pa.y + pc.y)));
+                triangles.extend([[a, b, m], [b, c, m], [c, d, m], [d, a, m]]);
+                continue;
             }
+        };
+        if right {
+            triangles.extend([[a, b, c], [a, c, d]]);
+        } else {
+            triangles.extend([[a, b, d], [b, c, d]]);
         }
     }
     Mesh::new(vertices, triangles)

@@ -11,7 +11,7 @@ use fem_core::energy::{AnyEnergy, Energy};
 use fem_core::math::{Real, Vec2};
 use fem_core::mesh::Mesh;
 use fem_core::stress::VonMisesFormula;
-use fem_core::structured::{RectangleParams, rectangle};
+use fem_core::structured::{NodeOrder, RectangleParams, rectangle};
 use fem_core::{Lame, Material};
 use fem_mesh::Mesh2;
 use fem_mesh::camera::{Camera, Projection};
@@ -102,6 +102,7 @@ pub fn build_mesh(scene: &LoadedScene, source: &dyn MeshSource) -> Result<Mesh, 
                 nx: spec.nx.unwrap_or(1),
                 ny: spec.ny.unwrap_or(1),
                 diagonal: spec.diagonal.unwrap_or_default(),
+                order: NodeOrder::XFastest,
             })
             .map_err(|e| SceneError::Mesh(format!("{}: mesh: {e}", scene.origin)))?;
             Mesh2 {

@@ -13,8 +13,8 @@
 //! counts), `--seconds S` (target time per measurement, default 0.5), `--repeat R` (best of R,
 //! default 3), `--skip-pbd`, `--energies neo-hookean,stvk,...` (explicit rows to run; default
 //! all five), `--json` (also print one `RESULT {json}` line per explicit measurement, read by
-//! `cargo xtask bench-peers`). The set-up matches the peer scripts: 5 m x 1 m beam, left edge
-//! pinned, gravity, E = 1000 Pa, nu = 0.3, 1 kg, symplectic Euler, damping 1/s, dt half the
+//! `cargo xtask bench-peers`). The set-up matches the peer scripts: 5 m x 1 m beam numbered as
+//! theirs (`NodeOrder::YFastest`), left edge pinned, gravity, E = 1000 Pa, nu = 0.3, 1 kg, symplectic Euler, damping 1/s, dt half the
 //! critical step. The explicit force kernel runs under the instruction set picked at run time
 //! (printed; `FEM2D_SIMD=baseline|avx2|avx512` caps it).
 
@@ -23,7 +23,10 @@ use std::time::Instant;
 use fem_core::PlaneModel;
 use fem_core::energy::{Corotational, Energy, Linear, NeoHookean, StableNeoHookean, Stvk};
 use fem_core::material::Material;
-use fem_solvers::testing::{self, beam_cells_for, beam_mesh, cantilever};
+use fem_solvers::testing::{
+    self, BEAM_HEIGHT, BEAM_LENGTH, NodeOrder, RectangleParams, beam_cells_for, cantilever,
+    rectangle,
+};
 use fem_solvers::{
     ExplicitParams, ExplicitStepper, Model, PbdParams, PbdStepper, State, Stepper, XpbdParams,
     XpbdStepper,
@@ -71,9 +74,15 @@ fn parse() -> Result<Options, String> {
     Ok(o)
 }
 
+/// The case A beam of about `triangles` triangles, numbered as the peer scripts number it
+/// (y fastest, cells column by column), so both sides time the same memory layout.
 fn model<E: Energy>(energy: E, triangles: usize) -> Model<E> {
     let (nx, ny) = beam_cells_for(triangles);
-    cantilever(beam_mesh(nx, ny).expect("beam sizes are positive"), energy)
+    let params = RectangleParams {
+        order: NodeOrder::YFastest,
+        ..RectangleParams::new(BEAM_LENGTH, BEAM_HEIGHT, nx, ny)
+    };
+    cantilever(rectangle(&params).expect("beam sizes are positive"), energy)
         .expect("the case A set-up is valid")
 }
 

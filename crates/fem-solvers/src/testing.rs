@@ -11,7 +11,7 @@
 use fem_core::energy::Energy;
 use fem_core::math::{Real, Vec2};
 use fem_core::mesh::{Mesh, MeshError};
-pub use fem_core::structured::{Diagonal, RectangleParams, rectangle};
+pub use fem_core::structured::{Diagonal, NodeOrder, RectangleParams, rectangle};
 
 use crate::{Model, Region, SolverError, State};
 
