@@ -35,6 +35,13 @@ pub fn run(args: &[&str]) -> Result<(), String> {
             .env("CARGO_PROFILE_RELEASE_DEBUG", "false");
         cmd
     };
+    // It is outside the workspace, so the workspace's `cargo fmt --check` does not see it.
+    let status = cargo(&["fmt", "--check"])
+        .status()
+        .map_err(|e| format!("cannot run cargo fmt: {e}"))?;
+    if !status.success() {
+        return Err("examples/consumer is not formatted (cargo fmt in that directory)".into());
+    }
     // The lock file is the consumer's own; `--locked` keeps CI on it.
     let native = output(&mut cargo(&["run", "--locked", "-q"]))?;
     let status = cargo(&[
