@@ -109,6 +109,7 @@ mod error;
 pub mod explicit;
 pub mod grab;
 pub mod implicit;
+pub mod ipc;
 mod kernel;
 pub mod limits;
 pub mod model;
