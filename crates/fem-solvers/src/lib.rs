@@ -54,7 +54,8 @@
 //! Lamé parameters are built). Conventions where the paper's printed text is ambiguous or
 //! departs from standard practice (symplectic Euler by default, damping `v <- v exp(-c dt)`, the
 //! consistent XPBD constraint `C = sqrt(2 a psi)`) are documented in each stepper's module. On
-//! `wasm32-unknown-unknown`, which has no clock, Newton's reported time split reads zero.
+//! `wasm32-unknown-unknown`, which has no clock of its own, Newton's reported time split reads
+//! zero unless the host supplies one ([`fem_core::clock::set_clock`]).
 //!
 //! What this crate does not know: meshing, file formats, scenes and the command line, and
 //! which energy a run uses.

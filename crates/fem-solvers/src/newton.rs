@@ -19,8 +19,9 @@
 //! number of rayon threads; assembly is parallel and deterministic (fem-core).
 //!
 //! Each solve reports the wall time it spent in assembly, factorisation, triangular solves and
-//! line search ([`NewtonReport`]). On `wasm32-unknown-unknown`, which has no clock, these times
-//! read zero (the solve itself is unchanged).
+//! line search ([`NewtonReport`]), read from [`fem_core::clock`]: on `wasm32-unknown-unknown`,
+//! which has no clock of its own, they read zero unless the host supplied one (the solve
+//! itself is unchanged).
 //!
 //! Why faer rather than a hand-written solver: a supernodal sparse Cholesky with an AMD ordering
 //! is the heart of the cost here, and faer's is well tested and fast.
@@ -120,7 +121,8 @@ pub struct NewtonReport {
     /// Inverted elements at the solution.
     pub inverted: usize,
     /// Wall time of gradient and Hessian assembly (forces, stiffness, reduction), s. This and
-    /// the three times below read zero on `wasm32-unknown-unknown` (no clock there).
+    /// the three times below read zero on `wasm32-unknown-unknown` unless the host supplied a
+    /// clock ([`fem_core::clock::set_clock`]).
     pub assembly_seconds: Real,
     /// Wall time of the numeric Cholesky factorisations, s.
     pub factorisation_seconds: Real,
