@@ -1,7 +1,8 @@
 //! The structured triangle mesh of an axis-aligned rectangle (cases A-C: the cantilever and the
 //! bar), with a selectable diagonal pattern: the framework's one rectangle generator (scenes,
-//! tests, benchmarks and `fem_solvers::testing` all use it, so a node has the same index
-//! everywhere).
+//! tests, benchmarks and `fem_solvers::testing` all use it). Its default numbering,
+//! [`NodeOrder::XFastest`], is the one they share; [`NodeOrder::YFastest`] is there for the
+//! cross-framework benchmark, whose peer scripts number the beam that way.
 //!
 //! ```
 //! use fem_core::structured::{Diagonal, RectangleParams, rectangle};

@@ -125,6 +125,10 @@ impl QualityReport {
 /// Hausdorff distance between two sets of polygon boundaries (outer rings and holes): the
 /// largest distance from a point of either to the other, sampled at every vertex and at three
 /// interior points of every edge (model units).
+///
+/// (Not geo's `HausdorffDistance`: it measures between the two vertex sets, so an edge
+/// midpoint far from the other boundary goes unseen and a vertex near the middle of the other's
+/// edge counts its distance to that edge's ends.)
 pub fn boundary_hausdorff(a: &[PolygonWithHoles], b: &[PolygonWithHoles]) -> f64 {
     directed(a, b).max(directed(b, a))
 }
