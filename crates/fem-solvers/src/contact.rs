@@ -110,6 +110,51 @@ impl ContactParams {
     }
 }
 
+/// Which two features touch in a [`Contact`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum ContactKind {
+    /// A soft boundary vertex on (or in) the ground.
+    VertexGround {
+        /// The soft vertex.
+        vertex: u32,
+    },
+    /// A soft boundary vertex against an edge of an obstacle (edge `k` runs from polygon
+    /// vertex `k` to `k + 1`).
+    VertexObstacle {
+        /// The soft vertex.
+        vertex: u32,
+        /// The obstacle's index.
+        obstacle: u32,
+        /// The obstacle's edge.
+        edge: u32,
+    },
+    /// An obstacle's corner against a soft boundary edge `[a, b]`.
+    CornerEdge {
+        /// The obstacle's index.
+        obstacle: u32,
+        /// The obstacle's corner (polygon vertex).
+        corner: u32,
+        /// The soft boundary edge's vertices.
+        edge: [u32; 2],
+    },
+}
+
+/// One contact at the end of a step: the stepper's own measure of it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Contact {
+    /// The features in contact.
+    pub kind: ContactKind,
+    /// The contact point on the soft body's side, m.
+    pub point: Vec2,
+    /// Unit normal pointing from the obstacle (or ground) into the soft body.
+    pub normal: Vec2,
+    /// Distance between the two features, m; negative means penetration (depth).
+    pub gap: Real,
+    /// Normal force on the soft body, N per unit thickness (>= 0).
+    pub force: Real,
+}
+
 /// How an obstacle moves.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[non_exhaustive]

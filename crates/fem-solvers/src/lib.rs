@@ -102,6 +102,7 @@
 //! ```
 
 pub mod bc;
+mod broad_phase;
 pub mod colour;
 mod commit;
 pub mod contact;
@@ -132,7 +133,7 @@ use fem_core::energy::Energy;
 use fem_core::math::Real;
 
 pub use bc::{PrescribedMotion, Region};
-pub use contact::{BodyState, ContactParams, Ground, ObstacleMotion};
+pub use contact::{BodyState, Contact, ContactKind, ContactParams, Ground, ObstacleMotion};
 pub use error::SolverError;
 pub use explicit::{ExplicitParams, ExplicitScheme, ExplicitStepper};
 pub use grab::{Grab, GrabModel};
@@ -189,6 +190,13 @@ pub trait Stepper {
         model: &Model<E>,
         state: &mut State,
     ) -> Result<StepReport, SolverError>;
+
+    /// The contacts of the last step, at its end configuration: where, the normal, the gap
+    /// (negative: penetration) and the normal force, in a fixed order. Empty for a stepper
+    /// without contact and for a model without a ground or obstacles.
+    fn contacts(&self) -> &[Contact] {
+        &[]
+    }
 }
 
 /// The checks every stepper makes before a step: the model is the one the stepper was built

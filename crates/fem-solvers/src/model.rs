@@ -65,6 +65,10 @@ pub struct Model<E: Energy> {
     /// The instruction set the batched force kernel runs under.
     isa: Isa,
     modulus: Real,
+    /// The mesh's boundary edges (counter-clockwise: the body lies to the left of `a -> b`).
+    boundary: Vec<[u32; 2]>,
+    /// The vertices of the boundary edges, sorted.
+    boundary_vertices: Vec<u32>,
 }
 
 impl<E: Energy> Model<E> {
@@ -97,7 +101,13 @@ impl<E: Energy> Model<E> {
             ));
         }
         let elements = pack(&mesh);
+        let boundary = boundary_edges(mesh.triangles());
+        let mut boundary_vertices: Vec<u32> = boundary.iter().flatten().copied().collect();
+        boundary_vertices.sort_unstable();
+        boundary_vertices.dedup();
         Ok(Model {
+            boundary,
+            boundary_vertices,
             blocks: pack_blocks(&elements),
             isa: Isa::detected(),
             elements,
@@ -520,6 +530,17 @@ impl<E: Energy> Model<E> {
     /// External nodal forces `(vertex, force)`, in the order they were added.
     pub fn external_forces(&self) -> &[(u32, Vec2)] {
         &self.external_forces
+    }
+
+    /// The mesh's boundary edges, `[a, b]` in counter-clockwise order (the body lies to the
+    /// left of `a -> b`), sorted: the soft side of edge contact.
+    pub fn boundary_edges(&self) -> &[[u32; 2]] {
+        &self.boundary
+    }
+
+    /// The vertices on the mesh's boundary, sorted: the soft side of vertex contact.
+    pub fn boundary_vertices(&self) -> &[u32] {
+        &self.boundary_vertices
     }
 
     /// The ground, if any.

@@ -296,6 +296,12 @@ macro_rules! registry {
                     $(AnyStepper::$variant(s) => s.step(model, state),)+
                 }
             }
+
+            fn contacts(&self) -> &[crate::contact::Contact] {
+                match self {
+                    $(AnyStepper::$variant(s) => s.contacts(),)+
+                }
+            }
         }
     };
 }
