@@ -339,6 +339,9 @@ fn build_unloaded_model<E: Energy>(
                 stiffness: c.stiffness.unwrap_or(d.stiffness),
                 damping_ratio: c.damping_ratio.unwrap_or(d.damping_ratio),
                 friction: c.friction.unwrap_or(d.friction),
+                barrier_distance: c.barrier_distance.unwrap_or(d.barrier_distance),
+                barrier_stiffness: c.barrier_stiffness.unwrap_or(d.barrier_stiffness),
+                friction_velocity: c.friction_velocity.unwrap_or(d.friction_velocity),
             })
             .map_err(&err)?;
     }

@@ -327,6 +327,12 @@ pub struct ContactSpec {
     pub damping_ratio: Option<f64>,
     /// Coulomb friction coefficient. Default 0.5.
     pub friction: Option<f64>,
+    /// Barrier contact (implicit, static): activation distance, m. Default 1e-3.
+    pub barrier_distance: Option<f64>,
+    /// Barrier contact: barrier stiffness, N/m^4 (0: automatic). Default 0.
+    pub barrier_stiffness: Option<f64>,
+    /// Barrier contact (implicit): slip speed below which friction sticks, m/s. Default 1e-3.
+    pub friction_velocity: Option<f64>,
 }
 
 /// A named point; the probe follows the rest vertex nearest to it.
@@ -808,6 +814,15 @@ impl LoadedScene {
             }
             if let Some(mu) = c.friction {
                 non_negative("contact.friction", mu, "dimensionless")?;
+            }
+            if let Some(d) = c.barrier_distance {
+                positive("contact.barrier_distance", d, "m")?;
+            }
+            if let Some(k) = c.barrier_stiffness {
+                non_negative("contact.barrier_stiffness", k, "N/m^4")?;
+            }
+            if let Some(v) = c.friction_velocity {
+                positive("contact.friction_velocity", v, "m/s")?;
             }
         }
         if let Some(init) = &s.initial {

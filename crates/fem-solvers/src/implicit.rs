@@ -25,7 +25,9 @@
 use fem_core::energy::Energy;
 use fem_core::math::{Real, Vec2, exp};
 
+use crate::barrier_contact::BarrierContact;
 use crate::commit::{Kinematic, StepEnd};
+use crate::contact::{BodyState, Contact, ObstacleMotion};
 use crate::error::{SolverError, check_non_negative, check_positive};
 use crate::model::Model;
 use crate::newton::{NewtonParams, NewtonReport, NewtonSolver, Potential};
@@ -90,6 +92,13 @@ pub struct ImplicitStepper {
     last: NewtonReport,
     /// The model layout the free degrees of freedom were analysed for.
     layout: u64,
+    /// Barrier contact, when the model has a ground or obstacles.
+    contact: Option<BarrierContact>,
+    /// The obstacles' target poses of the step and their new states.
+    targets: Vec<[Real; 3]>,
+    bodies_new: Vec<BodyState>,
+    /// The smallest distance over the candidate pairs at the end of the last step, m.
+    min_distance: Real,
 }
 
 impl ImplicitStepper {
@@ -97,17 +106,26 @@ impl ImplicitStepper {
     /// symbolic analysis of the Hessian's pattern.
     pub fn new<E: Energy>(model: &Model<E>, params: ImplicitParams) -> Result<Self, SolverError> {
         params.validate()?;
-        if model.has_contact() {
-            return Err(SolverError::invalid(
-                "implicit.contact",
-                "ground or obstacles",
-                "contact is handled by the explicit, PBD and XPBD steppers only",
-            ));
-        }
         let kinematic: Vec<usize> = model.kinematics().vertices().collect();
-        let solver = NewtonSolver::new(model.mesh(), &kinematic, "implicit")?;
+        let contact = model.has_contact().then(|| {
+            BarrierContact::new(model, model.contact_params().friction_velocity * params.dt)
+        });
+        let solver = match &contact {
+            Some(c) => NewtonSolver::with_extra(
+                model.mesh(),
+                &kinematic,
+                "implicit",
+                c.n_extra(),
+                c.coupled_vertices(),
+            )?,
+            None => NewtonSolver::new(model.mesh(), &kinematic, "implicit")?,
+        };
         let n = model.mesh().n_vertices();
         Ok(ImplicitStepper {
+            contact,
+            targets: Vec::new(),
+            bodies_new: Vec::new(),
+            min_distance: Real::INFINITY,
             layout: model.layout(),
             decay: exp(-params.damping * params.dt),
             params,
@@ -134,6 +152,13 @@ impl ImplicitStepper {
     /// Free degrees of freedom of the linear systems.
     pub fn unknowns(&self) -> usize {
         self.solver.n_free()
+    }
+
+    /// The smallest distance between the soft body and the ground or an obstacle over the
+    /// candidate pairs at the end of the last step, m (infinite when nothing is near, or
+    /// without contact). Barrier contact keeps it positive.
+    pub fn min_distance(&self) -> Real {
+        self.min_distance
     }
 }
 
@@ -190,14 +215,87 @@ impl Stepper for ImplicitStepper {
                 x[v] = state.x[v] + h * kinematics.velocity(k, state.x[v], t, h, t + h);
             }
         };
+        if let Some(c) = self.contact.as_mut() {
+            // The obstacles' targets: inertial predictions of dynamic bodies, the schedule's
+            // poses of kinematic ones.
+            self.bodies_new.clone_from(&state.bodies);
+            self.targets.clear();
+            for (obs, body) in model.obstacles().iter().zip(self.bodies_new.iter_mut()) {
+                match obs.motion() {
+                    ObstacleMotion::Kinematic { .. } => obs.advance_kinematic(body, t, h),
+                    ObstacleMotion::Dynamic { .. } => {
+                        body.position += body.velocity * h;
+                        body.angle += body.angular_velocity * h;
+                    }
+                    ObstacleMotion::Static => {}
+                }
+                self.targets
+                    .push([body.position.x, body.position.y, body.angle]);
+            }
+            c.begin(
+                &state.x,
+                &state.bodies,
+                &self.targets,
+                1.0 / (h * h),
+                model.gravity(),
+            );
+            let (d, at) = c.min_start_distance(&state.x);
+            if d <= 0.0 {
+                return Err(SolverError::invalid(
+                    "implicit.contact",
+                    format!("{at} at distance {d:e} m"),
+                    "barrier contact needs every soft vertex and obstacle apart at the start of a step (start the body above the ground and clear of obstacles)",
+                ));
+            }
+            // Start from the prediction as far as it stays free of contact.
+            for (d, (xh, x)) in self.v_new.iter_mut().zip(self.x_new.iter().zip(&state.x)) {
+                *d = xh - x;
+            }
+            c.dq.fill(0.0);
+            c.prepare(&state.x, Some(&self.v_new));
+            let alpha = c.max_step(&state.x, &self.v_new);
+            if alpha < 1.0 {
+                for ((xn, x), d) in self.x_new.iter_mut().zip(&state.x).zip(&self.v_new) {
+                    *xn = x + d * alpha;
+                }
+                for v in model.kinematics().vertices() {
+                    self.x_new[v] = self.target[v];
+                }
+            }
+        }
         let report = self.solver.minimise(
             &potential,
             &mut self.x_new,
             &self.params.newton,
             Some(&current),
+            self.contact.as_mut(),
         )?;
         for ((v, xn), x) in self.v_new.iter_mut().zip(&self.x_new).zip(&state.x) {
             *v = (xn - x) / h * self.decay;
+        }
+        let mut contacts = 0;
+        if let Some(c) = self.contact.as_mut() {
+            for (o, (obs, body)) in model
+                .obstacles()
+                .iter()
+                .zip(self.bodies_new.iter_mut())
+                .enumerate()
+            {
+                let q = c.q[o];
+                let old = &state.bodies[o];
+                match obs.motion() {
+                    ObstacleMotion::Dynamic { .. } => {
+                        body.velocity = (Vec2::new(q[0], q[1]) - old.position) / h;
+                        body.angular_velocity = (q[2] - old.angle) / h;
+                    }
+                    // Kinematic bodies keep their schedule's velocity.
+                    ObstacleMotion::Kinematic { .. } | ObstacleMotion::Static => {}
+                }
+                body.position = Vec2::new(q[0], q[1]);
+                body.angle = q[2];
+            }
+            self.min_distance = c.record(&self.x_new);
+            contacts = c.contacts().len();
         }
         // Kinematic velocities are their schedule's (undamped): the commit moves them.
         let step = state.step;
@@ -209,7 +307,7 @@ impl Stepper for ImplicitStepper {
             },
             x: &mut self.x_new,
             v: &mut self.v_new,
-            bodies: None,
+            bodies: self.contact.is_some().then_some(&mut self.bodies_new),
             known_finite: false,
             inverted: report.inverted,
             min_det_f: report.min_det_f,
@@ -232,10 +330,17 @@ impl Stepper for ImplicitStepper {
             inverted: report.inverted,
             iterations: report.iterations,
             residual: *report.residuals.last().unwrap_or(&0.0),
-            contacts: 0,
+            contacts,
         };
         self.last = report;
         Ok(out)
+    }
+
+    fn contacts(&self) -> &[Contact] {
+        match &self.contact {
+            Some(c) => c.contacts(),
+            None => &[],
+        }
     }
 }
 
@@ -246,7 +351,7 @@ impl Solver for ImplicitStepper {
         title: "Implicit Euler",
         summary: "implicit (backward) Euler: Newton on the incremental potential, sparse Cholesky",
         paper: false,
-        contact: false,
+        contact: true,
         implicit: true,
         iterations: false,
         substeps: false,

@@ -101,6 +101,7 @@
 //! assert!(kind.capabilities().contact);
 //! ```
 
+mod barrier_contact;
 pub mod bc;
 mod broad_phase;
 pub mod colour;

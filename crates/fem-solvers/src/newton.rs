@@ -42,6 +42,7 @@ use fem_core::energy::Energy;
 use fem_core::math::{Real, Vec2};
 use fem_core::mesh::Mesh;
 
+use crate::barrier_contact::{BarrierContact, Dof};
 use crate::error::{SolverError, check_at_most, check_count};
 use crate::grab::{Spring, spring_energy, spring_of};
 use crate::limits;
@@ -139,7 +140,12 @@ pub(crate) struct NewtonSolver {
     prefix: &'static str,
     /// Free-DOF index of each of the `2 n_vertices` DOFs, or `u32::MAX` when kinematic.
     free: Vec<u32>,
+    /// Free DOFs: the soft ones, then `n_extra` extra ones (moving obstacles' poses).
     n_free: usize,
+    /// Free soft DOFs (the extra ones follow them).
+    n_soft: usize,
+    /// The extra unknowns' line-search direction and the obstacles' trial poses.
+    trial_q: Vec<[Real; 3]>,
     col_ptr: Vec<usize>,
     row_idx: Vec<usize>,
     values: Vec<Real>,
@@ -215,6 +221,19 @@ impl NewtonSolver {
         kinematic: &[usize],
         prefix: &'static str,
     ) -> Result<Self, SolverError> {
+        Self::with_extra(mesh, kinematic, prefix, 0, &[])
+    }
+
+    /// As [`NewtonSolver::new`], with `n_extra` more unknowns (always free) that may couple
+    /// with each other and with the soft vertices `coupled` (sorted): the poses of moving
+    /// obstacles in barrier contact.
+    pub(crate) fn with_extra(
+        mesh: &Mesh,
+        kinematic: &[usize],
+        prefix: &'static str,
+        n_extra: usize,
+        coupled: &[u32],
+    ) -> Result<Self, SolverError> {
         let self_prefix = prefix;
         let stiffness = Stiffness::new(mesh);
         let n_dof = 2 * mesh.n_vertices();
@@ -235,6 +254,7 @@ impl NewtonSolver {
                 };
             }
         }
+        let n_soft = n_free;
         if n_free == 0 {
             return Err(SolverError::invalid(
                 format!("{prefix}.kinematics"),
@@ -266,8 +286,19 @@ impl NewtonSolver {
                     row_idx.push(i as usize);
                 }
             }
+            // Rows of the extra unknowns (after every soft row) for coupled vertices.
+            if n_extra > 0 && coupled.binary_search(&((r / 2) as u32)).is_ok() {
+                row_idx.extend(n_soft..n_soft + n_extra);
+            }
             col_ptr.push(row_idx.len());
         }
+        // The extra unknowns' own columns: dense lower triangle.
+        for j in n_soft..n_soft + n_extra {
+            diag.push(row_idx.len());
+            row_idx.extend(j..n_soft + n_extra);
+            col_ptr.push(row_idx.len());
+        }
+        let n_free = n_soft + n_extra;
         let values = vec![0.0; row_idx.len()];
         let pattern =
             SymbolicSparseColMatRef::new_checked(n_free, n_free, &col_ptr, None, &row_idx);
@@ -296,6 +327,8 @@ impl NewtonSolver {
             )
         })?;
         Ok(NewtonSolver {
+            n_soft,
+            trial_q: Vec::new(),
             prefix,
             l_values: vec![0.0; symbolic.len_val()],
             symbolic,
@@ -321,10 +354,51 @@ impl NewtonSolver {
         self.n_free
     }
 
-    /// Gradient of the potential over the free DOFs into `self.gradient`; returns its norm.
-    fn gradient<E: Energy>(&mut self, p: &Potential<'_, E>, x: &[Vec2]) -> Real {
+    /// The free index of a contact term's degree of freedom (`None`: held).
+    #[inline]
+    fn free_of(&self, d: Dof) -> Option<usize> {
+        match d {
+            Dof::Soft(i) => {
+                let j = self.free[i];
+                (j != u32::MAX).then_some(j as usize)
+            }
+            Dof::Extra(k) => Some(self.n_soft + k),
+        }
+    }
+
+    /// The slot of free entry `(i, j)` (either order) in `values`.
+    #[inline]
+    fn slot(&self, i: usize, j: usize) -> Option<usize> {
+        let (r, c) = if i >= j { (i, j) } else { (j, i) };
+        let rows = &self.row_idx[self.col_ptr[c]..self.col_ptr[c + 1]];
+        rows.binary_search(&r).ok().map(|k| self.col_ptr[c] + k)
+    }
+
+    /// Gradient of the potential (with the contact term at the poses `q`, when there is one)
+    /// over the free DOFs into `self.gradient`; returns its norm.
+    fn gradient<E: Energy>(
+        &mut self,
+        p: &Potential<'_, E>,
+        x: &[Vec2],
+        contact: Option<(&BarrierContact, &[[Real; 3]])>,
+    ) -> Real {
         populate_forces(p.mesh, p.energy, x, &mut self.forces, &mut self.scratch);
-        let mut sq = 0.0;
+        if let Some((c, q)) = contact {
+            self.gradient[self.n_soft..].fill(0.0);
+            let n_soft = self.n_soft;
+            let (forces, gradient) = (&mut self.forces, &mut self.gradient);
+            c.derivatives(
+                x,
+                q,
+                &mut |d, g| match d {
+                    // As a force: the soft part joins the elastic forces below.
+                    Dof::Soft(i) => forces[i / 2][i % 2] -= g,
+                    Dof::Extra(k) => gradient[n_soft + k] += g,
+                },
+                None,
+            );
+        }
+        let mut sq: Real = self.gradient[self.n_soft..].iter().map(|g| g * g).sum();
         for (v, xv) in x.iter().enumerate() {
             let mut g = -self.forces[v] - p.load[v];
             if p.weight > 0.0 {
@@ -351,6 +425,7 @@ impl NewtonSolver {
         &mut self,
         p: &Potential<'_, E>,
         x: &[Vec2],
+        contact: Option<(&BarrierContact, &[[Real; 3]])>,
         report: &mut NewtonReport,
     ) -> Result<(), SolverError> {
         let start = Stopwatch::start();
@@ -385,6 +460,27 @@ impl NewtonSolver {
                     self.values[self.diag[j as usize]] += s.stiffness;
                 }
             }
+        }
+        if let Some((c, q)) = contact {
+            let mut values = std::mem::take(&mut self.values);
+            c.derivatives(
+                x,
+                q,
+                &mut |_, _| {},
+                Some(&mut |a, b, v| {
+                    // Each unordered pair arrives twice (as (a, b) and (b, a)); the lower
+                    // triangle takes one of them, the diagonal both halves.
+                    if let (Some(i), Some(j)) = (self.free_of(a), self.free_of(b))
+                        && i >= j
+                    {
+                        let slot = self
+                            .slot(i, j)
+                            .expect("contact couples degrees of freedom outside the pattern");
+                        values[slot] += v;
+                    }
+                }),
+            );
+            self.values = values;
         }
         let scale = self
             .diag
@@ -454,28 +550,58 @@ impl NewtonSolver {
 
     /// Minimise the potential from `x` (kinematic vertices already placed), in place. When the
     /// potential is not finite at `x` (an inverted element under an energy that forbids it),
-    /// `fallback` rewrites `x` to a safe start before giving up.
+    /// `fallback` rewrites `x` to a safe start before giving up. With `contact`, its barrier,
+    /// friction and moving obstacles join the potential (its poses `q` are unknowns too, and
+    /// `x` must be free of contact: every candidate pair apart), and every line search starts
+    /// at the largest step the CCD allows.
     pub(crate) fn minimise<E: Energy>(
         &mut self,
         p: &Potential<'_, E>,
         x: &mut [Vec2],
         params: &NewtonParams,
         fallback: Option<Restart<'_>>,
+        mut contact: Option<&mut BarrierContact>,
     ) -> Result<NewtonReport, SolverError> {
         let mut report = NewtonReport::default();
-        let (mut phi, mut magnitude) = p.value(x, &mut self.scratch);
+        let mut trial_q = std::mem::take(&mut self.trial_q);
+        let value = |x: &[Vec2], q: Option<(&BarrierContact, &[[Real; 3]])>, s: &mut Scratch| {
+            let (e, m) = p.value(x, s);
+            match q {
+                Some((c, q)) => {
+                    let (ce, cm) = c.value(x, q);
+                    (e + ce, m + cm)
+                }
+                None => (e, m),
+            }
+        };
+        if let Some(c) = contact.as_deref_mut() {
+            c.prepare(x, None);
+        }
+        let (mut phi, mut magnitude) = value(
+            x,
+            contact.as_deref().map(|c| (c, &c.q[..])),
+            &mut self.scratch,
+        );
         if let (false, Some(restart)) = (phi.is_finite(), fallback) {
             restart(x);
-            (phi, magnitude) = p.value(x, &mut self.scratch);
+            if let Some(c) = contact.as_deref_mut() {
+                c.prepare(x, None);
+            }
+            (phi, magnitude) = value(
+                x,
+                contact.as_deref().map(|c| (c, &c.q[..])),
+                &mut self.scratch,
+            );
         }
         if !phi.is_finite() {
+            self.trial_q = trial_q;
             return Err(SolverError::invalid(
                 format!("{}.initial_guess", self.prefix),
                 phi,
                 "the potential is not finite at the starting positions",
             ));
         }
-        let mut residual = self.gradient(p, x);
+        let mut residual = self.gradient(p, x, contact.as_deref().map(|c| (c, &c.q[..])));
         let load: Real = p.load.iter().map(|f| f.norm_squared()).sum::<Real>().sqrt();
         let target = params.tolerance * residual.max(load).max(1e-12);
         report.residuals.push(residual);
@@ -491,7 +617,7 @@ impl NewtonSolver {
         let size = body_size(p.mesh.vertices());
         let mut at_floor = false;
         while residual > target && !at_floor && report.iterations < params.max_iterations {
-            self.factorise(p, x, &mut report)?;
+            self.factorise(p, x, contact.as_deref().map(|c| (c, &c.q[..])), &mut report)?;
             let start = Stopwatch::start();
             self.solve();
             report.solve_seconds += start.seconds();
@@ -501,6 +627,17 @@ impl NewtonSolver {
                 at_floor = true;
                 break;
             }
+            if let Some(c) = contact.as_deref_mut() {
+                // A rotating obstacle turns little enough in one line search for the CCD on
+                // its corners' chords to hold: shorten the whole direction.
+                c.dq.copy_from_slice(&self.direction[self.n_soft..]);
+                let limit = c.rotation_limit(x);
+                if limit < 1.0 {
+                    for d in self.direction.iter_mut() {
+                        *d *= limit;
+                    }
+                }
+            }
             let slope: Real = self
                 .direction
                 .iter()
@@ -508,6 +645,21 @@ impl NewtonSolver {
                 .map(|(d, g)| d * g)
                 .sum();
             let mut alpha = 1.0;
+            if let Some(c) = contact.as_deref_mut() {
+                // The whole Newton step per vertex, the candidates along it, and the CCD bound.
+                for (v, t) in self.trial.iter_mut().enumerate() {
+                    *t = Vec2::zeros();
+                    for d in 0..2 {
+                        let j = self.free[2 * v + d];
+                        if j != u32::MAX {
+                            t[d] = self.direction[j as usize];
+                        }
+                    }
+                }
+                c.dq.copy_from_slice(&self.direction[self.n_soft..]);
+                c.prepare(x, Some(&self.trial));
+                alpha = c.max_step(x, &self.trial);
+            }
             let mut accepted = false;
             for _ in 0..=params.max_halvings {
                 self.trial.copy_from_slice(x);
@@ -519,7 +671,11 @@ impl NewtonSolver {
                         }
                     }
                 }
-                let (trial_phi, trial_magnitude) = p.value(&self.trial, &mut self.scratch);
+                if let Some(c) = contact.as_deref() {
+                    c.trial_poses(alpha, &mut trial_q);
+                }
+                let cq = contact.as_deref().map(|c| (c, &trial_q[..]));
+                let (trial_phi, trial_magnitude) = value(&self.trial, cq, &mut self.scratch);
                 if !trial_phi.is_finite() {
                     alpha *= 0.5;
                     continue;
@@ -529,7 +685,7 @@ impl NewtonSolver {
                     (trial_phi - phi).abs() <= 1e-12 * (magnitude + trial_magnitude + psi_scale);
                 let lowers_residual = in_round_off && {
                     let trial = std::mem::take(&mut self.trial);
-                    let r = self.gradient(p, &trial);
+                    let r = self.gradient(p, &trial, cq);
                     self.trial = trial;
                     r < residual
                 };
@@ -549,12 +705,17 @@ impl NewtonSolver {
                 break;
             }
             x.copy_from_slice(&self.trial);
+            if let Some(c) = contact.as_deref_mut() {
+                c.q.clone_from(&trial_q);
+                c.prepare(x, None);
+            }
             let start = Stopwatch::start();
-            residual = self.gradient(p, x);
+            residual = self.gradient(p, x, contact.as_deref().map(|c| (c, &c.q[..])));
             report.assembly_seconds += start.seconds();
             report.residuals.push(residual);
             report.potentials.push(phi);
         }
+        self.trial_q = trial_q;
         report.converged = residual <= target || at_floor;
         let (mut min_det, mut inverted) = (Real::INFINITY, 0);
         for (t, el) in p.mesh.elements().iter().enumerate() {

@@ -32,8 +32,10 @@
 use fem_core::energy::Energy;
 use fem_core::math::{Real, Vec2};
 
+use crate::barrier_contact::BarrierContact;
 use crate::bc::Motion;
 use crate::commit::{Kinematic, StepEnd};
+use crate::contact::{BodyState, Contact, ObstacleMotion};
 use crate::error::{SolverError, check_at_most, check_count};
 use crate::implicit::external_load;
 use crate::limits;
@@ -117,6 +119,14 @@ pub struct StaticStepper {
     last: NewtonReport,
     /// The model layout the free degrees of freedom were analysed for.
     layout: u64,
+    /// Barrier contact, when the model has a ground or obstacles.
+    contact: Option<BarrierContact>,
+    /// The obstacles' poses at load factor 0, and their target poses and new states.
+    poses0: Vec<[Real; 3]>,
+    targets: Vec<[Real; 3]>,
+    bodies_new: Vec<BodyState>,
+    /// The smallest distance over the candidate pairs at the last equilibrium, m.
+    min_distance: Real,
 }
 
 impl StaticStepper {
@@ -124,12 +134,16 @@ impl StaticStepper {
     /// motions without an end, and does the symbolic analysis of the Hessian's pattern.
     pub fn new<E: Energy>(model: &Model<E>, params: StaticParams) -> Result<Self, SolverError> {
         params.validate()?;
-        if model.has_contact() {
-            return Err(SolverError::invalid(
-                "static.contact",
-                "ground or obstacles",
-                "contact is handled by the explicit, PBD and XPBD steppers only",
-            ));
+        for (o, obs) in model.obstacles().iter().enumerate() {
+            if let ObstacleMotion::Kinematic { end, .. } = obs.motion()
+                && !end.is_finite()
+            {
+                return Err(SolverError::invalid(
+                    format!("obstacles[{o}].end"),
+                    end,
+                    "must be finite for the static solver (the load factor scales the whole motion velocity * (end - start))",
+                ));
+            }
         }
         let kin = model.kinematics();
         let kinematic: Vec<usize> = kin.vertices().collect();
@@ -154,9 +168,26 @@ impl StaticStepper {
             };
             displacement.push(u);
         }
-        let solver = NewtonSolver::new(model.mesh(), &kinematic, "static")?;
+        let contact = model
+            .has_contact()
+            .then(|| BarrierContact::new(model, model.contact_params().barrier_distance));
+        let solver = match &contact {
+            Some(c) => NewtonSolver::with_extra(
+                model.mesh(),
+                &kinematic,
+                "static",
+                c.n_extra(),
+                c.coupled_vertices(),
+            )?,
+            None => NewtonSolver::new(model.mesh(), &kinematic, "static")?,
+        };
         let n = model.mesh().n_vertices();
         Ok(StaticStepper {
+            contact,
+            poses0: Vec::new(),
+            targets: Vec::new(),
+            bodies_new: Vec::new(),
+            min_distance: Real::INFINITY,
             layout: model.layout(),
             increment: 1.0 / params.load_steps as Real,
             params,
@@ -200,6 +231,13 @@ impl StaticStepper {
         self.solver.n_free()
     }
 
+    /// The smallest distance between the soft body and the ground or an obstacle over the
+    /// candidate pairs at the last equilibrium, m (infinite when nothing is near, or without
+    /// contact). Barrier contact keeps it positive.
+    pub fn min_distance(&self) -> Real {
+        self.min_distance
+    }
+
     /// Where the kinematic vertices were at load factor 0: taken from the state at `t = 0`
     /// (a new run also resets the increment and the halvings), and recovered from its
     /// positions when the state is not one this stepper produced.
@@ -208,6 +246,13 @@ impl StaticStepper {
         if t == 0.0 {
             self.increment = 1.0 / self.params.load_steps as Real;
             self.halvings = 0;
+            self.poses0.clear();
+            self.poses0.extend(
+                state
+                    .bodies
+                    .iter()
+                    .map(|b| [b.position.x, b.position.y, b.angle]),
+            );
         }
         for ((o, &v), u) in self
             .origin
@@ -304,17 +349,91 @@ impl Stepper for StaticStepper {
                 load: &self.scaled,
                 springs: model.springs(),
             };
-            let outcome =
-                self.solver
-                    .minimise(&potential, &mut self.x_new, &self.params.newton, None);
+            if let Some(c) = self.contact.as_mut() {
+                // Kinematic obstacles move in proportion to the load factor; the others start
+                // where they are.
+                if self.poses0.len() != state.bodies.len() {
+                    self.poses0 = state
+                        .bodies
+                        .iter()
+                        .map(|b| [b.position.x, b.position.y, b.angle])
+                        .collect();
+                }
+                self.targets.clear();
+                for ((obs, body), p0) in model
+                    .obstacles()
+                    .iter()
+                    .zip(&state.bodies)
+                    .zip(&self.poses0)
+                {
+                    self.targets.push(match obs.motion() {
+                        ObstacleMotion::Kinematic {
+                            velocity,
+                            angular_velocity,
+                            start,
+                            end,
+                        } => {
+                            let span = end - start;
+                            [
+                                p0[0] + next * velocity.x * span,
+                                p0[1] + next * velocity.y * span,
+                                p0[2] + next * angular_velocity * span,
+                            ]
+                        }
+                        _ => [body.position.x, body.position.y, body.angle],
+                    });
+                }
+                c.begin(
+                    &state.x,
+                    &state.bodies,
+                    &self.targets,
+                    0.0,
+                    model.gravity() * next,
+                );
+                let (d, at) = c.min_start_distance(&state.x);
+                if d <= 0.0 {
+                    return Err(SolverError::invalid(
+                        "static.contact",
+                        format!("{at} at distance {d:e} m"),
+                        "barrier contact needs every soft vertex and obstacle apart at the start of an increment (start the body above the ground and clear of obstacles)",
+                    ));
+                }
+                // Kinematic vertices jump to their new places; the free ones start where they
+                // are (free of contact).
+                let kinematic = &self.kinematic;
+                for (v, (xn, x)) in self.x_new.iter_mut().zip(&state.x).enumerate() {
+                    if kinematic.binary_search(&v).is_err() {
+                        *xn = *x;
+                    }
+                }
+            }
+            let outcome = self.solver.minimise(
+                &potential,
+                &mut self.x_new,
+                &self.params.newton,
+                None,
+                self.contact.as_mut(),
+            );
             let reason = match outcome {
                 Ok(r) if r.converged && r.min_det_f.is_finite() => {
                     self.v_new.fill(Vec2::zeros());
+                    let mut contacts = 0;
+                    if let Some(c) = self.contact.as_mut() {
+                        self.bodies_new.clone_from(&state.bodies);
+                        for (b, q) in self.bodies_new.iter_mut().zip(&c.q) {
+                            b.position = Vec2::new(q[0], q[1]);
+                            b.angle = q[2];
+                            b.velocity = Vec2::zeros();
+                            b.angular_velocity = 0.0;
+                        }
+                        self.min_distance = c.record(&self.x_new);
+                        contacts = c.contacts().len();
+                    }
                     StepEnd {
                         kinematics: Kinematic::Placed,
                         x: &mut self.x_new,
                         v: &mut self.v_new,
-                        bodies: None,
+                        bodies: self.contact.is_some().then_some(&mut self.bodies_new),
                         known_finite: false,
                         inverted: r.inverted,
                         min_det_f: r.min_det_f,
@@ -327,7 +446,7 @@ impl Stepper for StaticStepper {
                         inverted: r.inverted,
                         iterations: r.iterations + failed_iterations,
                         residual: r.residuals.last().copied().unwrap_or(Real::NAN),
-                        contacts: 0,
+                        contacts,
                     };
                     self.last = r;
                     return Ok(out);
@@ -359,6 +478,13 @@ impl Stepper for StaticStepper {
             self.increment *= 0.5;
         }
     }
+
+    fn contacts(&self) -> &[Contact] {
+        match &self.contact {
+            Some(c) => c.contacts(),
+            None => &[],
+        }
+    }
 }
 
 impl Solver for StaticStepper {
@@ -368,7 +494,7 @@ impl Solver for StaticStepper {
         title: "Static",
         summary: "quasi-static equilibrium (no inertia): Newton per load increment, halved on failure, sparse Cholesky",
         paper: false,
-        contact: false,
+        contact: true,
         implicit: true,
         iterations: false,
         substeps: false,

@@ -3,6 +3,7 @@
 //! PBD/XPBD, implicit Euler, statics, contact, thread determinism of the other orderings, and
 //! the registry as scenes use it; `docs/solvers.md` kept true.
 
+mod barrier_contact;
 mod battery;
 mod capability_table;
 mod common;

@@ -1,0 +1,1069 @@
+//! Barrier contact for the Newton solvers (implicit Euler and statics), in the manner of
+//! Incremental Potential Contact (Li et al. 2020): contact is a term of the potential Newton
+//! minimises, and a line search filtered by continuous collision detection never lets a step
+//! cross, so the distance between the soft body and every obstacle stays positive at every
+//! step (not only at sampled times).
+//!
+//! **Pairs.** Three kinds, found by the broad phase ([`crate::broad_phase`]) over the soft
+//! body's boundary:
+//! - a soft boundary vertex and the ground (the distance is the height above it);
+//! - a soft boundary vertex and an obstacle's edge;
+//! - an obstacle's corner and a soft boundary edge (so a sharp corner cannot pass between two
+//!   soft vertices).
+//!
+//! **Barrier.** Each pair at squared distance `s` below `d_hat^2` adds `kappa b(s, d_hat^2)`
+//! ([`crate::ipc::barrier`]); its force grows without bound as the distance closes. The
+//! activation distance `d_hat` is [`ContactParams::barrier_distance`]; the stiffness `kappa`
+//! is [`ContactParams::barrier_stiffness`], or by default `M / (8 d_hat^2)` with `M` the
+//! P-wave modulus of the body at rest: the barrier's normal stiffness at half the activation
+//! distance then equals the modulus (about an element's stiffness), and a contact carrying the
+//! force `F` (N per unit thickness) settles at the gap `M d_hat^2 / (4 F)` when that is well
+//! below `d_hat`. Each pair's Hessian block is projected to positive semi-definite.
+//!
+//! **Friction** (Coulomb, coefficient [`ContactParams::friction`]) is lagged as in IPC: the
+//! normal force, the tangent and the contact point's place on the edge are those at the start
+//! of the solve, and the friction potential `mu lambda f0(|u|)` of the tangential relative
+//! displacement `u` over the step is smoothed below `eps_x` (static friction within `eps_x`,
+//! sliding at `mu lambda` beyond): `eps_x = eps_v h` in implicit Euler
+//! ([`ContactParams::friction_velocity`] = `eps_v`), `eps_x = d_hat` in statics.
+//!
+//! **Rigid bodies.** A dynamic obstacle's centroid and angle are unknowns of the same Newton
+//! system (two-way coupling): its inertia `M/(2h^2) |c - c_hat|^2 + I/(2h^2) (theta -
+//! theta_hat)^2` and its weight join the potential (statics: its weight only). A kinematic
+//! obstacle is an unknown too, tethered to its prescribed pose by a stiff spring (stiffness
+//! `1e6 M_p` per metre, `M_p` the P-wave modulus, and the same times the squared radius per
+//! radian), so it pushes the soft body through the barrier rather than jumping into it; it
+//! lags its schedule by the contact force over that stiffness (about 1e-9 m for kN forces on
+//! a MPa body). Static obstacles and the ground are fixed.
+//!
+//! **CCD.** Before each line search the largest step that keeps every candidate pair apart is
+//! found by additive CCD ([`crate::ipc::point_segment_toi`], exact for the ground): the line
+//! search starts there. The corners of a rotating body are taken to move along the chord of
+//! their arc within one Newton step; a trial whose squared distance is not positive for some
+//! pair is rejected like an infinite energy.
+
+use fem_core::math::{Mat6, Real, Vec2, sin_cos};
+use nalgebra::SymmetricEigen;
+
+use crate::broad_phase::{Aabb, Grid};
+use crate::contact::{BodyState, Contact, ContactKind, ContactParams, Ground, ObstacleMotion};
+use crate::ipc::{Grad6, Hess6, barrier, point_segment_distance2, point_segment_toi};
+use crate::model::Model;
+use fem_core::energy::Energy;
+
+/// The pairs' separation factor of the CCD: a step never closes a gap by more than 90 %.
+const CCD_SEPARATION: Real = 0.1;
+
+/// What a point of a pair is attached to.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Point {
+    /// A soft vertex.
+    Soft(u32),
+    /// An obstacle's corner (obstacle, corner).
+    Corner(u32, u32),
+    /// A fixed point (the ground's two reference points).
+    Fixed(Vec2),
+}
+
+/// One candidate pair: the point `p` against the segment `[a, b]`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Pair {
+    kind: ContactKind,
+    p: Point,
+    a: Point,
+    b: Point,
+    /// The ground: distance is the signed height (one-sided), not the distance to a segment.
+    ground: bool,
+}
+
+/// The lagged friction data of a pair active at the start of the solve.
+#[derive(Clone, Copy, Debug)]
+struct Lag {
+    kind: ContactKind,
+    /// Normal force magnitude at the start, N.
+    lambda: Real,
+    /// Unit tangent.
+    tangent: Vec2,
+    /// The closest point's parameter on the segment.
+    beta: Real,
+}
+
+/// How a moving obstacle's unknowns are weighted.
+#[derive(Clone, Copy, Debug)]
+enum Role {
+    /// Inertia (mass/h^2, inertia/h^2; 0 in statics) and weight.
+    Dynamic { mass: Real, inertia: Real },
+    /// A stiff tether to the prescribed pose.
+    Kinematic,
+}
+
+/// A moving obstacle's unknowns.
+#[derive(Clone, Copy, Debug)]
+struct Body {
+    obstacle: usize,
+    role: Role,
+    /// Index of its first unknown among the extra degrees of freedom.
+    first: usize,
+    /// Whether the angle is an unknown (else only the centroid).
+    rotates: bool,
+    /// Quadratic weights of `[x, y, theta]` about `target`.
+    weight: [Real; 3],
+    /// The pose the weights pull towards.
+    target: [Real; 3],
+    /// Force on the centroid (its weight), N.
+    load: Vec2,
+}
+
+/// One degree of freedom of the Newton system: a soft one (`2 v + d`) or an extra one.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Dof {
+    Soft(usize),
+    Extra(usize),
+}
+
+/// The barrier contact term of one Newton solve: settings, the obstacles' unknowns, the
+/// candidate pairs and the lagged friction.
+#[derive(Debug)]
+pub(crate) struct BarrierContact {
+    d_hat: Real,
+    kappa: Real,
+    mu: Real,
+    eps_x: Real,
+    ground: Option<Ground>,
+    /// Each obstacle's local polygon.
+    polygons: Vec<Vec<Vec2>>,
+    /// The moving obstacles' unknowns, by obstacle (`None`: fixed).
+    body_of: Vec<Option<usize>>,
+    bodies: Vec<Body>,
+    n_extra: usize,
+    /// The poses of every obstacle `[x, y, theta]` (unknown for moving ones).
+    pub q: Vec<[Real; 3]>,
+    /// The poses at the start of the solve.
+    q_start: Vec<[Real; 3]>,
+    /// Soft positions at the start of the solve (friction's reference).
+    x_start: Vec<Vec2>,
+    boundary: Vec<[u32; 2]>,
+    boundary_vertices: Vec<u32>,
+    /// Extra-DOF directions of the current line search.
+    pub dq: Vec<Real>,
+    grid: Grid,
+    boxes: Vec<Aabb>,
+    found: Vec<u32>,
+    pairs: Vec<Pair>,
+    lags: Vec<Lag>,
+    contacts: Vec<Contact>,
+    tether: Real,
+}
+
+/// `R(theta) l` and its derivative `perp(R l)`.
+#[inline]
+fn rotate(theta: Real, l: Vec2) -> Vec2 {
+    let (s, c) = sin_cos(theta);
+    Vec2::new(c * l.x - s * l.y, s * l.x + c * l.y)
+}
+
+/// IPC's friction mollifier `f0` and its first two derivatives, for `y >= 0`.
+#[inline]
+fn mollifier(y: Real, eps: Real) -> (Real, Real, Real) {
+    if y >= eps {
+        (y, 1.0, 0.0)
+    } else {
+        (
+            -y * y * y / (3.0 * eps * eps) + y * y / eps + eps / 3.0,
+            -y * y / (eps * eps) + 2.0 * y / eps,
+            -2.0 * y / (eps * eps) + 2.0 / eps,
+        )
+    }
+}
+
+/// The positive semi-definite part of a symmetric 6x6 matrix.
+fn project_psd(h: &Hess6) -> Hess6 {
+    let eig = SymmetricEigen::new(Mat6::from(*h));
+    let mut d = eig.eigenvalues;
+    if d.iter().all(|&l| l >= 0.0) {
+        return *h;
+    }
+    for l in d.iter_mut() {
+        *l = l.max(0.0);
+    }
+    let q = eig.eigenvectors;
+    q * Mat6::from_diagonal(&d) * q.transpose()
+}
+
+impl BarrierContact {
+    /// The contact term for `model` (which has a ground or obstacles), with the friction
+    /// smoothing displacement `eps_x` (m).
+    pub(crate) fn new<E: Energy>(model: &Model<E>, eps_x: Real) -> Self {
+        let params: &ContactParams = model.contact_params();
+        let d_hat = params.barrier_distance;
+        let modulus = model.p_wave_modulus();
+        let kappa = if params.barrier_stiffness > 0.0 {
+            params.barrier_stiffness
+        } else {
+            modulus / (8.0 * d_hat * d_hat)
+        };
+        let mut bodies = Vec::new();
+        let mut body_of = Vec::new();
+        let mut n_extra = 0;
+        let mut q = Vec::new();
+        for (o, obs) in model.obstacles().iter().enumerate() {
+            let c = obs.initial_centroid();
+            q.push([c.x, c.y, 0.0]);
+            let (role, rotates) = match obs.motion() {
+                ObstacleMotion::Static => {
+                    body_of.push(None);
+                    continue;
+                }
+                ObstacleMotion::Kinematic { .. } => (Role::Kinematic, true),
+                ObstacleMotion::Dynamic { mass, rotates } => (
+                    Role::Dynamic {
+                        mass,
+                        inertia: obs.inertia(),
+                    },
+                    rotates,
+                ),
+            };
+            body_of.push(Some(bodies.len()));
+            bodies.push(Body {
+                obstacle: o,
+                role,
+                first: n_extra,
+                rotates,
+                weight: [0.0; 3],
+                target: [c.x, c.y, 0.0],
+                load: Vec2::zeros(),
+            });
+            n_extra += if rotates { 3 } else { 2 };
+        }
+        BarrierContact {
+            d_hat,
+            kappa,
+            mu: params.friction,
+            eps_x,
+            ground: model.ground().copied(),
+            polygons: model
+                .obstacles()
+                .iter()
+                .map(|o| o.local_polygon().to_vec())
+                .collect(),
+            body_of,
+            bodies,
+            n_extra,
+            q_start: q.clone(),
+            q,
+            x_start: Vec::new(),
+            boundary: model.boundary_edges().to_vec(),
+            boundary_vertices: model.boundary_vertices().to_vec(),
+            dq: vec![0.0; n_extra],
+            grid: Grid::default(),
+            boxes: Vec::new(),
+            found: Vec::new(),
+            pairs: Vec::new(),
+            lags: Vec::new(),
+            contacts: Vec::new(),
+            tether: 1e6 * modulus,
+        }
+    }
+
+    /// Extra unknowns (the moving obstacles' poses).
+    pub(crate) fn n_extra(&self) -> usize {
+        self.n_extra
+    }
+
+    /// The soft vertices an extra unknown may couple to (the boundary).
+    pub(crate) fn coupled_vertices(&self) -> &[u32] {
+        &self.boundary_vertices
+    }
+
+    /// Set up a solve from the soft positions `x` and the obstacles' poses `poses` at its
+    /// start: targets and weights of the moving obstacles (`inertia_weight` = `1/h^2`, 0 in
+    /// statics; `target_poses` the inertial predictions of dynamic bodies and the prescribed
+    /// poses of kinematic ones; `gravity` scaled by the load factor), and the lagged friction.
+    pub(crate) fn begin(
+        &mut self,
+        x: &[Vec2],
+        poses: &[BodyState],
+        target_poses: &[[Real; 3]],
+        inertia_weight: Real,
+        gravity: Vec2,
+    ) {
+        self.x_start.clear();
+        self.x_start.extend_from_slice(x);
+        for (o, b) in poses.iter().enumerate() {
+            self.q[o] = [b.position.x, b.position.y, b.angle];
+        }
+        self.q_start.clone_from(&self.q);
+        let radius2: Vec<Real> = self
+            .polygons
+            .iter()
+            .map(|p| p.iter().map(|l| l.norm_squared()).fold(0.0, Real::max))
+            .collect();
+        for body in &mut self.bodies {
+            body.target = target_poses[body.obstacle];
+            match body.role {
+                Role::Dynamic { mass, inertia } => {
+                    body.weight = [
+                        inertia_weight * mass,
+                        inertia_weight * mass,
+                        inertia_weight * inertia,
+                    ];
+                    body.load = gravity * mass;
+                }
+                Role::Kinematic => {
+                    let k = self.tether;
+                    body.weight = [k, k, k * radius2[body.obstacle].max(1e-12)];
+                    body.load = Vec2::zeros();
+                }
+            }
+        }
+        // Lagged friction from the pairs active at the start.
+        self.prepare(x, None);
+        self.lags.clear();
+        if self.mu > 0.0 {
+            for k in 0..self.pairs.len() {
+                let pair = self.pairs[k];
+                let [p, a, b] = self.points(&pair, x, &self.q);
+                let (s, normal, beta) = self.geometry(&pair, p, a, b);
+                if s >= self.d_hat * self.d_hat || s <= 0.0 {
+                    continue;
+                }
+                let (_, db, _) = barrier(s, self.d_hat * self.d_hat);
+                let lambda = -self.kappa * db * 2.0 * s.sqrt();
+                self.lags.push(Lag {
+                    kind: pair.kind,
+                    lambda,
+                    tangent: Vec2::new(-normal.y, normal.x),
+                    beta,
+                });
+            }
+        }
+    }
+
+    /// The world position of an obstacle's corner at the poses `q`.
+    #[inline]
+    fn corner(&self, q: &[[Real; 3]], o: u32, c: u32) -> Vec2 {
+        let pose = q[o as usize];
+        Vec2::new(pose[0], pose[1]) + rotate(pose[2], self.polygons[o as usize][c as usize])
+    }
+
+    #[inline]
+    fn point(&self, pt: Point, x: &[Vec2], q: &[[Real; 3]]) -> Vec2 {
+        match pt {
+            Point::Soft(v) => x[v as usize],
+            Point::Corner(o, c) => self.corner(q, o, c),
+            Point::Fixed(p) => p,
+        }
+    }
+
+    #[inline]
+    fn points(&self, pair: &Pair, x: &[Vec2], q: &[[Real; 3]]) -> [Vec2; 3] {
+        [pair.p, pair.a, pair.b].map(|pt| self.point(pt, x, q))
+    }
+
+    /// Squared distance (negative heights of the ground give `-h^2`), the unit normal from the
+    /// segment (or ground) towards the point, and the closest point's parameter.
+    fn geometry(&self, pair: &Pair, p: Vec2, a: Vec2, b: Vec2) -> (Real, Vec2, Real) {
+        if pair.ground {
+            let g = self.ground.as_ref().expect("ground pair without a ground");
+            let h = (p - g.point).dot(&g.normal);
+            return (h.signum() * h * h, g.normal, 0.0);
+        }
+        let e = b - a;
+        let l2 = e.norm_squared();
+        let beta = if l2 > 0.0 {
+            ((p - a).dot(&e) / l2).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        let d = p - (a + e * beta);
+        let n = d.norm();
+        let normal = if n > 0.0 {
+            d / n
+        } else {
+            Vec2::new(e.y, -e.x).normalize()
+        };
+        (d.norm_squared(), normal, beta)
+    }
+
+    /// The candidate pairs for the motion from `(x, q)` along `(dx, self.dq)` (whole step;
+    /// `None`: no motion): every pair whose boxes, swept and grown by `d_hat`, overlap.
+    pub(crate) fn prepare(&mut self, x: &[Vec2], dx: Option<&[Vec2]>) {
+        let q_end: Vec<[Real; 3]> = match dx {
+            Some(_) => self
+                .q
+                .iter()
+                .enumerate()
+                .map(|(o, p)| {
+                    let mut e = *p;
+                    if let Some(b) = self.body_of[o] {
+                        let b = &self.bodies[b];
+                        e[0] += self.dq[b.first];
+                        e[1] += self.dq[b.first + 1];
+                        if b.rotates {
+                            e[2] += self.dq[b.first + 2];
+                        }
+                    }
+                    e
+                })
+                .collect(),
+            None => self.q.clone(),
+        };
+        let end = |v: usize| match dx {
+            Some(d) => x[v] + d[v],
+            None => x[v],
+        };
+        let margin = self.d_hat;
+        self.pairs.clear();
+        // Ground: every boundary vertex whose swept box comes within d_hat.
+        if let Some(g) = self.ground {
+            let (t0, t1) = (g.point, g.point + Vec2::new(g.normal.y, -g.normal.x));
+            for &v in &self.boundary_vertices {
+                let h0 = (x[v as usize] - g.point).dot(&g.normal);
+                let h1 = (end(v as usize) - g.point).dot(&g.normal);
+                if h0.min(h1) < margin {
+                    self.pairs.push(Pair {
+                        kind: ContactKind::VertexGround { vertex: v },
+                        p: Point::Soft(v),
+                        a: Point::Fixed(t0),
+                        b: Point::Fixed(t1),
+                        ground: true,
+                    });
+                }
+            }
+        }
+        if self.polygons.is_empty() {
+            return;
+        }
+        self.boxes.clear();
+        for &[a, b] in &self.boundary {
+            let (a, b) = (a as usize, b as usize);
+            self.boxes
+                .push(Aabb::of(&[x[a], x[b], end(a), end(b)]).inflated(margin));
+        }
+        self.grid.build(&self.boxes);
+        for o in 0..self.polygons.len() {
+            let n = self.polygons[o].len();
+            let corner_box = |k: usize| {
+                let c0 = self.corner(&self.q, o as u32, k as u32);
+                let c1 = self.corner(&q_end, o as u32, k as u32);
+                (c0, c1)
+            };
+            let corners: Vec<(Vec2, Vec2)> = (0..n).map(corner_box).collect();
+            for k in 0..n {
+                let (a0, a1) = corners[k];
+                let (b0, b1) = corners[(k + 1) % n];
+                let edge_box = Aabb::of(&[a0, a1, b0, b1]);
+                let mut found = std::mem::take(&mut self.found);
+                self.grid.query(&edge_box, &mut found);
+                for &e in &found {
+                    let [sa, sb] = self.boundary[e as usize];
+                    // Soft vertices of the edge against the obstacle's edge k.
+                    for v in [sa, sb] {
+                        let vb = Aabb::of(&[x[v as usize], end(v as usize)]).inflated(margin);
+                        if vb.overlaps(&edge_box) {
+                            self.pairs.push(Pair {
+                                kind: ContactKind::VertexObstacle {
+                                    vertex: v,
+                                    obstacle: o as u32,
+                                    edge: k as u32,
+                                },
+                                p: Point::Soft(v),
+                                a: Point::Corner(o as u32, k as u32),
+                                b: Point::Corner(o as u32, ((k + 1) % n) as u32),
+                                ground: false,
+                            });
+                        }
+                    }
+                    // The obstacle's corner k against the soft edge.
+                    let cb = Aabb::of(&[a0, a1]);
+                    if cb.overlaps(&self.boxes[e as usize]) {
+                        self.pairs.push(Pair {
+                            kind: ContactKind::CornerEdge {
+                                obstacle: o as u32,
+                                corner: k as u32,
+                                edge: [sa, sb],
+                            },
+                            p: Point::Corner(o as u32, k as u32),
+                            a: Point::Soft(sa),
+                            b: Point::Soft(sb),
+                            ground: false,
+                        });
+                    }
+                }
+                self.found = found;
+            }
+        }
+        // One pair per feature couple, in a fixed order.
+        self.pairs.sort_unstable_by_key(|p| key(&p.kind));
+        self.pairs.dedup_by_key(|p| key(&p.kind));
+    }
+
+    /// The obstacles' poses after the step `alpha` along `self.dq`.
+    pub(crate) fn trial_poses(&self, alpha: Real, out: &mut Vec<[Real; 3]>) {
+        out.clone_from(&self.q);
+        for b in &self.bodies {
+            let p = &mut out[b.obstacle];
+            p[0] += alpha * self.dq[b.first];
+            p[1] += alpha * self.dq[b.first + 1];
+            if b.rotates {
+                p[2] += alpha * self.dq[b.first + 2];
+            }
+        }
+    }
+
+    /// The contact energy at `(x, q)` (barriers, friction, the moving obstacles' inertia or
+    /// tether and weight) and the sum of its terms' magnitudes; infinite when a candidate
+    /// pair touches or crosses.
+    pub(crate) fn value(&self, x: &[Vec2], q: &[[Real; 3]]) -> (Real, Real) {
+        let s_hat = self.d_hat * self.d_hat;
+        let (mut e, mut mag) = (0.0, 0.0);
+        for pair in &self.pairs {
+            let [p, a, b] = self.points(pair, x, q);
+            let (s, _, _) = self.geometry(pair, p, a, b);
+            if s <= 0.0 {
+                return (Real::INFINITY, Real::INFINITY);
+            }
+            let (bv, _, _) = barrier(s, s_hat);
+            e += self.kappa * bv;
+        }
+        mag += e.abs();
+        for lag in &self.lags {
+            let (u, _) = self.slip(lag, x, q);
+            let (f0, _, _) = mollifier(u.abs(), self.eps_x);
+            let d = self.mu * lag.lambda * f0;
+            e += d;
+            mag += d.abs();
+        }
+        for b in &self.bodies {
+            let p = q[b.obstacle];
+            for ((pk, tk), wk) in p.iter().zip(&b.target).zip(&b.weight) {
+                let t = 0.5 * wk * (pk - tk).powi(2);
+                e += t;
+                mag += t;
+            }
+            let s = self.q_start[b.obstacle];
+            let w = b.load.x * (p[0] - s[0]) + b.load.y * (p[1] - s[1]);
+            e -= w;
+            mag += w.abs();
+        }
+        (e, mag)
+    }
+
+    /// The lag's pair (by kind) as points.
+    fn lag_pair(&self, lag: &Lag) -> Pair {
+        pair_of(lag.kind, self.ground.as_ref(), &self.polygons)
+    }
+
+    /// Tangential slip of a lagged pair over the solve and its gradient over `[p, a, b]`.
+    fn slip(&self, lag: &Lag, x: &[Vec2], q: &[[Real; 3]]) -> (Real, Grad6) {
+        let pair = self.lag_pair(lag);
+        let now = self.points(&pair, x, q);
+        let then = self.points(&pair, &self.x_start, &self.q_start);
+        let w = [1.0, -(1.0 - lag.beta), -lag.beta];
+        let mut rel = Vec2::zeros();
+        let mut g = Grad6::zeros();
+        for k in 0..3 {
+            rel += (now[k] - then[k]) * w[k];
+            g[2 * k] = w[k] * lag.tangent.x;
+            g[2 * k + 1] = w[k] * lag.tangent.y;
+        }
+        (rel.dot(&lag.tangent), g)
+    }
+
+    /// The degrees of freedom of a point and `d point / d dof` for each; second derivative
+    /// of a corner in its angle (`-R l`).
+    fn jacobian(&self, pt: Point, q: &[[Real; 3]], out: &mut Vec<(Dof, Vec2)>) -> Vec2 {
+        out.clear();
+        match pt {
+            Point::Soft(v) => {
+                out.push((Dof::Soft(2 * v as usize), Vec2::new(1.0, 0.0)));
+                out.push((Dof::Soft(2 * v as usize + 1), Vec2::new(0.0, 1.0)));
+                Vec2::zeros()
+            }
+            Point::Corner(o, c) => {
+                let Some(b) = self.body_of[o as usize] else {
+                    return Vec2::zeros();
+                };
+                let b = &self.bodies[b];
+                out.push((Dof::Extra(b.first), Vec2::new(1.0, 0.0)));
+                out.push((Dof::Extra(b.first + 1), Vec2::new(0.0, 1.0)));
+                let r = rotate(q[o as usize][2], self.polygons[o as usize][c as usize]);
+                if b.rotates {
+                    out.push((Dof::Extra(b.first + 2), Vec2::new(-r.y, r.x)));
+                    -r
+                } else {
+                    Vec2::zeros()
+                }
+            }
+            Point::Fixed(_) => Vec2::zeros(),
+        }
+    }
+
+    /// Scatter a pair's gradient and (already projected) Hessian over `[p, a, b]` into the
+    /// system through the points' Jacobians.
+    #[allow(clippy::too_many_arguments)]
+    fn scatter(
+        &self,
+        pair: &Pair,
+        q: &[[Real; 3]],
+        g: &Grad6,
+        h: Option<&Hess6>,
+        grad: &mut dyn FnMut(Dof, Real),
+        hess: &mut dyn FnMut(Dof, Dof, Real),
+        jac: &mut [Vec<(Dof, Vec2)>; 3],
+    ) {
+        let mut curv = [Vec2::zeros(); 3];
+        for (k, pt) in [pair.p, pair.a, pair.b].into_iter().enumerate() {
+            curv[k] = self.jacobian(pt, q, &mut jac[k]);
+        }
+        for k in 0..3 {
+            let gk = Vec2::new(g[2 * k], g[2 * k + 1]);
+            for &(dof, col) in &jac[k] {
+                grad(dof, gk.dot(&col));
+            }
+        }
+        let Some(h) = h else {
+            return;
+        };
+        for i in 0..3 {
+            for j in 0..3 {
+                let block = h.fixed_view::<2, 2>(2 * i, 2 * j);
+                for &(di, ci) in &jac[i] {
+                    for &(dj, cj) in &jac[j] {
+                        let v = ci.dot(&(block * cj));
+                        if v != 0.0 {
+                            hess(di, dj, v);
+                        }
+                    }
+                }
+            }
+            // The corner's curvature in its angle, kept where it is convex.
+            if curv[i] != Vec2::zeros() {
+                let gi = Vec2::new(g[2 * i], g[2 * i + 1]);
+                let c = gi.dot(&curv[i]);
+                if c > 0.0 {
+                    let theta = jac[i].last().expect("rotating corner").0;
+                    hess(theta, theta, c);
+                }
+            }
+        }
+    }
+
+    /// Add the gradient (and, with `hess`, the projected Hessian) of the contact energy at
+    /// `(x, q)` through the callbacks.
+    pub(crate) fn derivatives(
+        &self,
+        x: &[Vec2],
+        q: &[[Real; 3]],
+        grad: &mut dyn FnMut(Dof, Real),
+        hess: Option<&mut dyn FnMut(Dof, Dof, Real)>,
+    ) {
+        let s_hat = self.d_hat * self.d_hat;
+        let mut jac: [Vec<(Dof, Vec2)>; 3] = Default::default();
+        let mut noop = |_: Dof, _: Dof, _: Real| {};
+        let want_h = hess.is_some();
+        let hess: &mut dyn FnMut(Dof, Dof, Real) = match hess {
+            Some(h) => h,
+            None => &mut noop,
+        };
+        for pair in &self.pairs {
+            let [p, a, b] = self.points(pair, x, q);
+            let (g, h) = if pair.ground {
+                let gr = self.ground.as_ref().expect("ground pair");
+                let hgt = (p - gr.point).dot(&gr.normal);
+                let s = hgt * hgt;
+                if hgt <= 0.0 || s >= s_hat {
+                    continue;
+                }
+                let (_, db, d2b) = barrier(s, s_hat);
+                let ds = gr.normal * (2.0 * hgt);
+                let mut g = Grad6::zeros();
+                g[0] = self.kappa * db * ds.x;
+                g[1] = self.kappa * db * ds.y;
+                let mut h = Hess6::zeros();
+                let n = gr.normal;
+                let hp = (ds * ds.transpose() * d2b + n * n.transpose() * (2.0 * db)) * self.kappa;
+                h.fixed_view_mut::<2, 2>(0, 0).copy_from(&hp);
+                (g, h)
+            } else {
+                let (s, ds, d2s, _) = point_segment_distance2(p, a, b);
+                if s >= s_hat || s <= 0.0 {
+                    continue;
+                }
+                let (_, db, d2b) = barrier(s, s_hat);
+                (
+                    ds * (self.kappa * db),
+                    (ds * ds.transpose() * d2b + d2s * db) * self.kappa,
+                )
+            };
+            let hp = if want_h { project_psd(&h) } else { h };
+            self.scatter(pair, q, &g, want_h.then_some(&hp), grad, hess, &mut jac);
+        }
+        for lag in &self.lags {
+            let pair = self.lag_pair(lag);
+            let (u, du) = self.slip(lag, x, q);
+            let (_, f1, f2) = mollifier(u.abs(), self.eps_x);
+            let scale = self.mu * lag.lambda;
+            let g = du * (scale * f1 * u.signum());
+            let h = du * du.transpose() * (scale * f2);
+            self.scatter(&pair, q, &g, want_h.then_some(&h), grad, hess, &mut jac);
+        }
+        for b in &self.bodies {
+            let p = q[b.obstacle];
+            let n = if b.rotates { 3 } else { 2 };
+            for (k, (pk, tk)) in p.iter().zip(&b.target).enumerate().take(n) {
+                let mut g = b.weight[k] * (pk - tk);
+                if k < 2 {
+                    g -= b.load[k];
+                }
+                grad(Dof::Extra(b.first + k), g);
+                hess(
+                    Dof::Extra(b.first + k),
+                    Dof::Extra(b.first + k),
+                    b.weight[k],
+                );
+            }
+        }
+    }
+
+    /// The step fraction in `(0, 1]` along `self.dq` within which the corners of every
+    /// rotating obstacle stay so close to the chords of their arcs (sagitta `r dtheta^2 / 8`
+    /// at most 5 % of the smallest gap now, or of `d_hat` when nothing is that near) that the
+    /// CCD on chords stays conservative. Uses the pairs of the last `prepare` at `x`.
+    pub(crate) fn rotation_limit(&self, x: &[Vec2]) -> Real {
+        let mut gap = self.d_hat;
+        for pair in &self.pairs {
+            let [p, a, b] = self.points(pair, x, &self.q);
+            let (s, _, _) = self.geometry(pair, p, a, b);
+            gap = gap.min(s.signum() * s.abs().sqrt());
+        }
+        let mut alpha: Real = 1.0;
+        for b in self.bodies.iter().filter(|b| b.rotates) {
+            let dtheta = self.dq[b.first + 2].abs();
+            let r = self.polygons[b.obstacle]
+                .iter()
+                .map(|l| l.norm())
+                .fold(0.0, Real::max);
+            if dtheta > 0.0 && r > 0.0 && gap > 0.0 {
+                alpha = alpha.min((0.4 * gap / r).sqrt() / dtheta);
+            }
+        }
+        alpha
+    }
+
+    /// The largest step fraction in `(0, 1]` along `(dx, self.dq)` from `(x, self.q)` that keeps
+    /// every candidate pair apart (by additive CCD; 1 when nothing comes close).
+    pub(crate) fn max_step(&self, x: &[Vec2], dx: &[Vec2]) -> Real {
+        let mut q_end = Vec::new();
+        self.trial_poses(1.0, &mut q_end);
+        let mut alpha: Real = 1.0;
+        for pair in &self.pairs {
+            let start = self.points(pair, x, &self.q);
+            let x_end_pt = |pt: Point| match pt {
+                Point::Soft(v) => x[v as usize] + dx[v as usize],
+                Point::Corner(o, c) => self.corner(&q_end, o, c),
+                Point::Fixed(p) => p,
+            };
+            let end = [x_end_pt(pair.p), x_end_pt(pair.a), x_end_pt(pair.b)];
+            if pair.ground {
+                let g = self.ground.as_ref().expect("ground pair");
+                let h0 = (start[0] - g.point).dot(&g.normal);
+                let h1 = (end[0] - g.point).dot(&g.normal);
+                if h1 < CCD_SEPARATION * h0 {
+                    alpha = alpha.min((1.0 - CCD_SEPARATION) * h0 / (h0 - h1));
+                }
+                continue;
+            }
+            let disp = [end[0] - start[0], end[1] - start[1], end[2] - start[2]];
+            if let Some(t) = point_segment_toi(start, disp, CCD_SEPARATION) {
+                alpha = alpha.min(t);
+            }
+        }
+        alpha
+    }
+
+    /// The contacts (pairs within the activation distance) at `(x, q)`, with their normal
+    /// forces, into `self.contacts`; returns them and the smallest distance over all
+    /// candidate pairs (infinite when none).
+    pub(crate) fn record(&mut self, x: &[Vec2]) -> Real {
+        let s_hat = self.d_hat * self.d_hat;
+        self.prepare(x, None);
+        self.contacts.clear();
+        let mut min = Real::INFINITY;
+        for k in 0..self.pairs.len() {
+            let pair = self.pairs[k];
+            let [p, a, b] = self.points(&pair, x, &self.q);
+            let (s, normal, beta) = self.geometry(&pair, p, a, b);
+            let gap = s.signum() * s.abs().sqrt();
+            min = min.min(gap);
+            if s >= s_hat {
+                continue;
+            }
+            let force = if s > 0.0 {
+                -self.kappa * barrier(s, s_hat).1 * 2.0 * gap
+            } else {
+                Real::INFINITY
+            };
+            // The normal points into the soft body: from the segment to the point when the
+            // point is soft, the other way when the corner is the point.
+            let (point, normal) = match pair.p {
+                Point::Corner(..) => (a + (b - a) * beta, -normal),
+                _ => (p, normal),
+            };
+            self.contacts.push(Contact {
+                kind: pair.kind,
+                point,
+                normal,
+                gap,
+                force,
+            });
+        }
+        min
+    }
+
+    /// The smallest signed distance over the candidate pairs at `x` and the current poses
+    /// (after [`BarrierContact::begin`] or a `prepare` without motion), and the pair's
+    /// description; infinite when no pair is near.
+    pub(crate) fn min_start_distance(&self, x: &[Vec2]) -> (Real, String) {
+        let mut best = (Real::INFINITY, String::new());
+        for pair in &self.pairs {
+            let [p, a, b] = self.points(pair, x, &self.q);
+            let (s, _, _) = self.geometry(pair, p, a, b);
+            let d = s.signum() * s.abs().sqrt();
+            if d < best.0 {
+                best = (d, describe(&pair.kind));
+            }
+        }
+        best
+    }
+
+    /// The contacts found by the last [`BarrierContact::record`].
+    pub(crate) fn contacts(&self) -> &[Contact] {
+        &self.contacts
+    }
+}
+
+/// A pair in words, for error messages.
+fn describe(kind: &ContactKind) -> String {
+    match *kind {
+        ContactKind::VertexGround { vertex } => format!("vertex {vertex} and the ground"),
+        ContactKind::VertexObstacle {
+            vertex,
+            obstacle,
+            edge,
+        } => format!("vertex {vertex} and obstacles[{obstacle}] edge {edge}"),
+        ContactKind::CornerEdge {
+            obstacle,
+            corner,
+            edge,
+        } => format!(
+            "obstacles[{obstacle}] corner {corner} and the edge {}-{}",
+            edge[0], edge[1]
+        ),
+    }
+}
+
+/// A sort key of a pair's features.
+fn key(kind: &ContactKind) -> (u8, u32, u32, u32, u32) {
+    match *kind {
+        ContactKind::VertexGround { vertex } => (0, vertex, 0, 0, 0),
+        ContactKind::VertexObstacle {
+            vertex,
+            obstacle,
+            edge,
+        } => (1, obstacle, edge, vertex, 0),
+        ContactKind::CornerEdge {
+            obstacle,
+            corner,
+            edge,
+        } => (2, obstacle, corner, edge[0], edge[1]),
+    }
+}
+
+/// The points of a pair from its kind.
+fn pair_of(kind: ContactKind, ground: Option<&Ground>, polygons: &[Vec<Vec2>]) -> Pair {
+    match kind {
+        ContactKind::VertexGround { vertex } => {
+            let g = ground.expect("ground pair without a ground");
+            Pair {
+                kind,
+                p: Point::Soft(vertex),
+                a: Point::Fixed(g.point),
+                b: Point::Fixed(g.point + Vec2::new(g.normal.y, -g.normal.x)),
+                ground: true,
+            }
+        }
+        ContactKind::VertexObstacle {
+            vertex,
+            obstacle,
+            edge,
+        } => {
+            let n = polygons[obstacle as usize].len() as u32;
+            Pair {
+                kind,
+                p: Point::Soft(vertex),
+                a: Point::Corner(obstacle, edge),
+                b: Point::Corner(obstacle, (edge + 1) % n),
+                ground: false,
+            }
+        }
+        ContactKind::CornerEdge {
+            obstacle,
+            corner,
+            edge,
+        } => Pair {
+            kind,
+            p: Point::Corner(obstacle, corner),
+            a: Point::Soft(edge[0]),
+            b: Point::Soft(edge[1]),
+            ground: false,
+        },
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use fem_core::energy::NeoHookean;
+    use fem_core::material::Lame;
+    use fem_core::structured::{RectangleParams, rectangle};
+
+    /// A 1 m x 0.25 m strip on the ground (its bottom 0.4 mm above it) and a tilted dynamic
+    /// triangle whose corner hangs 0.3 mm above the strip's top edge: every pair kind is
+    /// within the activation distance (1 mm).
+    fn scene() -> (Model<NeoHookean>, Vec<BodyState>) {
+        let mesh = rectangle(&RectangleParams {
+            origin: [0.0, 4e-4],
+            ..RectangleParams::new(1.0, 0.25, 4, 1)
+        })
+        .unwrap();
+        let energy = NeoHookean::new(Lame::new(3e3, 5e3).unwrap()).unwrap();
+        let mut m = Model::with_total_mass(mesh, energy, 1.0).unwrap();
+        m.set_ground(Some(Ground::horizontal(0.0))).unwrap();
+        let top = 0.25 + 4e-4 + 3e-4;
+        m.add_obstacle(
+            &[
+                Vec2::new(0.4, top),
+                Vec2::new(0.7, top + 0.1),
+                Vec2::new(0.35, top + 0.2),
+            ],
+            ObstacleMotion::Dynamic {
+                mass: 2.0,
+                rotates: true,
+            },
+        )
+        .unwrap();
+        let bodies = m.obstacles().iter().map(BodyState::initial).collect();
+        (m, bodies)
+    }
+
+    /// Gradient of the contact energy (soft DOFs then extras) by the derivatives.
+    fn gradient(c: &BarrierContact, x: &[Vec2], q: &[[Real; 3]]) -> Vec<Real> {
+        let n = 2 * x.len();
+        let mut g = vec![0.0; n + c.n_extra()];
+        c.derivatives(
+            x,
+            q,
+            &mut |d, v| match d {
+                Dof::Soft(i) => g[i] += v,
+                Dof::Extra(k) => g[n + k] += v,
+            },
+            None,
+        );
+        g
+    }
+
+    /// The unknowns as one vector and back.
+    fn unpack(c: &BarrierContact, x0: &[Vec2], u: &[Real]) -> (Vec<Vec2>, Vec<[Real; 3]>) {
+        let n = x0.len();
+        let x = (0..n).map(|v| Vec2::new(u[2 * v], u[2 * v + 1])).collect();
+        let mut q = c.q.clone();
+        q[0] = [u[2 * n], u[2 * n + 1], u[2 * n + 2]];
+        (x, q)
+    }
+
+    #[test]
+    fn contact_energy_gradient_matches_finite_differences() {
+        let (model, bodies) = scene();
+        let x0 = model.mesh().vertices().to_vec();
+        let mut c = BarrierContact::new(&model, 1e-4);
+        // Targets away from the start so inertia and weight contribute; a small motion since
+        // the start so the lagged friction is in both its sticking and sliding ranges.
+        let targets = [[0.49, 0.36, 0.01]];
+        c.begin(&x0, &bodies, &targets, 8100.0, Vec2::new(0.0, -9.8));
+        assert!(c.lags.len() >= 3, "{} lagged contacts", c.lags.len());
+        let kinds: Vec<u8> = c.pairs.iter().map(|p| key(&p.kind).0).collect();
+        assert!(kinds.contains(&0) && kinds.contains(&1) && kinds.contains(&2));
+        let mut u: Vec<Real> = x0.iter().flat_map(|p| [p.x, p.y]).collect();
+        u.extend_from_slice(&c.q[0]);
+        // Move a little, keeping every gap positive: some slips below eps_x, some above.
+        for (k, v) in u.iter_mut().enumerate() {
+            *v += 2e-5 * ((k as Real * 0.37).sin());
+        }
+        let (x, q) = unpack(&c, &x0, &u);
+        c.prepare(&x, None);
+        let g = gradient(&c, &x, &q);
+        let h = 1e-8;
+        let mut worst: Real = 0.0;
+        let scale = g.iter().fold(0.0, |m: Real, v| m.max(v.abs()));
+        for k in 0..u.len() {
+            let mut up = u.clone();
+            up[k] += h;
+            let (xp, qp) = unpack(&c, &x0, &up);
+            let mut dn = u.clone();
+            dn[k] -= h;
+            let (xd, qd) = unpack(&c, &x0, &dn);
+            let fd = (c.value(&xp, &qp).0 - c.value(&xd, &qd).0) / (2.0 * h);
+            worst = worst.max((fd - g[k]).abs() / scale);
+        }
+        // Central differences with h = 1e-8 m on gaps of about 3e-4 m: truncation and
+        // round-off both stay below 1e-5 of the largest gradient entry.
+        assert!(worst < 1e-5, "worst relative gradient error {worst:e}");
+    }
+
+    #[test]
+    fn contact_hessian_is_symmetric_positive_semidefinite() {
+        let (model, bodies) = scene();
+        let x0 = model.mesh().vertices().to_vec();
+        let mut c = BarrierContact::new(&model, 1e-4);
+        c.begin(&x0, &bodies, &[[0.49, 0.36, 0.01]], 8100.0, Vec2::zeros());
+        let n = 2 * x0.len() + c.n_extra();
+        let mut hm = nalgebra::DMatrix::<Real>::zeros(n, n);
+        let nsoft = 2 * x0.len();
+        let idx = |d: Dof| match d {
+            Dof::Soft(i) => i,
+            Dof::Extra(k) => nsoft + k,
+        };
+        let q = c.q.clone();
+        c.derivatives(
+            &x0,
+            &q,
+            &mut |_, _| {},
+            Some(&mut |a, b, v| hm[(idx(a), idx(b))] += v),
+        );
+        let asym = (&hm - hm.transpose()).abs().max();
+        assert!(asym <= 1e-12 * hm.abs().max(), "asymmetry {asym:e}");
+        let min = hm.symmetric_eigenvalues().min();
+        assert!(min >= -1e-9 * hm.abs().max(), "smallest eigenvalue {min:e}");
+    }
+
+    #[test]
+    fn ccd_step_keeps_every_pair_apart_when_a_corner_is_driven_through_an_edge() {
+        let (model, bodies) = scene();
+        let x0 = model.mesh().vertices().to_vec();
+        let mut c = BarrierContact::new(&model, 1e-4);
+        c.begin(&x0, &bodies, &[[0.5, 0.3, 0.0]], 0.0, Vec2::zeros());
+        // The body dives 5 cm (through the strip's top) while the strip stays.
+        c.dq.copy_from_slice(&[0.0, -0.05, 0.0]);
+        let dx = vec![Vec2::zeros(); x0.len()];
+        c.prepare(&x0, Some(&dx));
+        let alpha = c.max_step(&x0, &dx);
+        assert!(alpha > 0.0 && alpha < 0.3e-3 / 0.05, "alpha {alpha}");
+        let mut q = Vec::new();
+        c.trial_poses(alpha, &mut q);
+        c.q.clone_from(&q);
+        c.prepare(&x0, None);
+        let (d, _) = c.min_start_distance(&x0);
+        assert!(d > 0.0 && d < 3e-4, "distance after the step {d:e}");
+    }
+}
