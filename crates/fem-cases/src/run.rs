@@ -25,6 +25,7 @@ use std::time::Instant;
 use fem_scene::SceneError;
 use fem_scene::run::{Clock, Frame, FrameSink, Progress, RunEnv, run};
 use fem_scene::scene::LoadedScene;
+use fem_solvers::ContactKind;
 
 use crate::files::FileSource;
 
@@ -211,6 +212,15 @@ impl FramesJsonl {
     }
 }
 
+/// A number as JSON (which has no NaN or infinity: those become `null`).
+fn json_number(v: f64) -> String {
+    if v.is_finite() {
+        v.to_string()
+    } else {
+        "null".to_owned()
+    }
+}
+
 impl FrameSink for FramesJsonl {
     fn frame(&mut self, f: &Frame<'_>) -> Result<(), SceneError> {
         if f.step == 0 {
@@ -253,6 +263,34 @@ impl FrameSink for FramesJsonl {
             } else {
                 let _ = write!(w, "{sep}null");
             }
+        }
+        w.push_str("],\"contacts\":[");
+        for (k, c) in f.contacts.iter().enumerate() {
+            let sep = if k == 0 { "" } else { "," };
+            let (kind, features) = match c.kind {
+                ContactKind::VertexGround { vertex } => ("vertex-ground", vec![vertex]),
+                ContactKind::VertexObstacle {
+                    vertex,
+                    obstacle,
+                    edge,
+                } => ("vertex-obstacle", vec![vertex, obstacle, edge]),
+                ContactKind::CornerEdge {
+                    obstacle,
+                    corner,
+                    edge,
+                } => ("corner-edge", vec![obstacle, corner, edge[0], edge[1]]),
+                _ => ("other", Vec::new()),
+            };
+            let _ = write!(
+                w,
+                "{sep}{{\"kind\":\"{kind}\",\"features\":{features:?},\"point\":[{},{}],\"normal\":[{},{}],\"gap\":{},\"force\":{}}}",
+                c.point.x,
+                c.point.y,
+                c.normal.x,
+                c.normal.y,
+                json_number(c.gap),
+                json_number(c.force)
+            );
         }
         w.push_str("]}\n");
         self.file

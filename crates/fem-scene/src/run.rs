@@ -27,7 +27,7 @@ use fem_core::math::{Real, Vec2};
 use fem_core::mesh::Mesh;
 use fem_core::stress::{ElementStress, VonMisesFormula, populate_element_stress, vertex_average};
 use fem_solvers::{
-    AnyStepper, Clock as SolverClock, Model, SolverError, SolverKind, State, Stepper,
+    AnyStepper, Clock as SolverClock, Contact, Model, SolverError, SolverKind, State, Stepper,
 };
 use serde::{Deserialize, Serialize};
 
@@ -84,6 +84,10 @@ pub struct Frame<'a> {
     pub von_mises: &'a [f64],
     /// Obstacle polygons at this frame, m.
     pub obstacles: &'a [Vec<Vec2>],
+    /// The contacts of the step that produced this frame (empty at step 0 and without
+    /// contact): the features, the point, the normal, the gap (negative: penetration), m, and
+    /// the normal force, N per unit thickness.
+    pub contacts: &'a [Contact],
 }
 
 /// Receives every recorded frame of a run, in order (a file writer, a VTK writer, a canvas).
@@ -249,6 +253,22 @@ pub struct Summary {
     /// 0 for the others).
     #[serde(default)]
     pub newton_iterations: u64,
+    /// Smallest gap over the contacts of every step, m: negative means penetration (the
+    /// penalty and projection solvers allow some; barrier contact never does); `null` when
+    /// nothing touched (barrier contact counts pairs within its activation distance).
+    #[serde(default)]
+    pub contact_min_gap: Option<f64>,
+    /// Largest normal force of a single contact over the run, N per unit thickness (0 without
+    /// contact).
+    #[serde(default)]
+    pub contact_peak_force: f64,
+    /// Total contact force on the soft body after the last step, N per unit thickness
+    /// (`[0, 0]` without contact).
+    #[serde(default)]
+    pub final_contact_force: [f64; 2],
+    /// Contacts after the last step.
+    #[serde(default)]
+    pub final_contacts: usize,
     /// Residual (norm of the force imbalance on the free vertices) at the end of the last
     /// Newton solve that converged, N (the last step or load increment); `null` for solvers
     /// explicit in time or when no solve converged.
@@ -331,6 +351,7 @@ impl Recorder {
         &mut self,
         model: &Model<E>,
         state: &State,
+        contacts: &[Contact],
         probes: &[Probe],
         sinks: &mut [&mut dyn FrameSink],
     ) -> Result<(), SceneError> {
@@ -398,6 +419,7 @@ impl Recorder {
             stress: &self.stress,
             von_mises: &self.von_mises,
             obstacles: &self.obstacles,
+            contacts,
         };
         for sink in sinks.iter_mut() {
             sink.frame(&frame)?;
@@ -449,6 +471,29 @@ struct Outcome {
     done: u64,
     newton_iterations: u64,
     final_residual: Option<f64>,
+    contact: ContactTally,
+}
+
+/// The contact numbers of a run, step by step.
+#[derive(Clone, Copy, Debug, Default)]
+struct ContactTally {
+    min_gap: Option<f64>,
+    peak_force: f64,
+    final_force: [f64; 2],
+    final_count: usize,
+}
+
+impl ContactTally {
+    fn add(&mut self, contacts: &[Contact]) {
+        let mut total = Vec2::zeros();
+        for c in contacts {
+            self.min_gap = Some(self.min_gap.map_or(c.gap, |g| g.min(c.gap)));
+            self.peak_force = self.peak_force.max(c.force);
+            total += c.normal * c.force;
+        }
+        self.final_force = [total.x, total.y];
+        self.final_count = contacts.len();
+    }
 }
 
 fn run_with<E: Energy>(
@@ -508,6 +553,7 @@ fn run_with<E: Energy>(
         done,
         newton_iterations,
         final_residual,
+        contact,
     } = outcome;
     // A load-stepping run has no simulated time.
     let sim = if load_stepping {
@@ -563,6 +609,10 @@ fn run_with<E: Energy>(
                     }),
             })
             .collect(),
+        contact_min_gap: contact.min_gap,
+        contact_peak_force: contact.peak_force,
+        final_contact_force: contact.final_force,
+        final_contacts: contact.final_count,
         newton_iterations,
         final_residual,
         version: env!("CARGO_PKG_VERSION").to_owned(),
@@ -604,7 +654,7 @@ fn step_loop<E: Energy>(
     let load_stepping = caps.clock == SolverClock::LoadFactor;
     let clock = env.clock;
     let start = clock.seconds();
-    rec.record(model, state, probes, &mut env.sinks)?;
+    rec.record(model, state, &[], probes, &mut env.sinks)?;
     let planned = s.solver.planned_steps();
     if let Some(p) = env.progress.as_deref_mut() {
         p.start(planned);
@@ -628,6 +678,7 @@ fn step_loop<E: Energy>(
     let mut blow_up: Option<String> = None;
     let mut newton_iterations = 0u64;
     let mut final_residual = None;
+    let mut contact = ContactTally::default();
     let mut done = 0u64;
     while !finished(done, state) && blow_up.is_none() {
         let chunk = if load_stepping {
@@ -649,6 +700,7 @@ fn step_loop<E: Energy>(
                     }
                     min_det_f = min_det_f.min(report.min_det_f);
                     inverted = inverted.max(report.inverted);
+                    contact.add(stepper.contacts());
                     if caps.implicit {
                         newton_iterations += report.iterations as u64;
                         final_residual = Some(report.residual);
@@ -670,7 +722,7 @@ fn step_loop<E: Energy>(
         }
         if done.is_multiple_of(every) || finished(done, state) || blow_up.is_some() {
             if rec.frame_times.last().map(|f| f.0) != Some(state.step) {
-                rec.record(model, state, probes, &mut env.sinks)?;
+                rec.record(model, state, stepper.contacts(), probes, &mut env.sinks)?;
             }
             if blow_up.is_none()
                 && let Some(m) = rec.runaway.take()
@@ -694,6 +746,7 @@ fn step_loop<E: Energy>(
         done,
         newton_iterations,
         final_residual,
+        contact,
     })
 }
 

@@ -144,8 +144,8 @@ fn static_and_implicit_refuse_a_body_that_starts_touching_the_ground() {
     model
         .set_ground(Some(fem_solvers::Ground::horizontal(0.0)))
         .unwrap();
-    let mut state = fem_solvers::State::at_rest(&model);
-    let mut s = fem_solvers::StaticStepper::new(&model, StaticParams::default()).unwrap();
+    let mut state = State::at_rest(&model);
+    let mut s = StaticStepper::new(&model, StaticParams::default()).unwrap();
     let e = s.step(&model, &mut state).unwrap_err();
     assert!(
         e.to_string().starts_with("static.contact = vertex ")
@@ -154,7 +154,10 @@ fn static_and_implicit_refuse_a_body_that_starts_touching_the_ground() {
     );
     let mut s = fem_solvers::ImplicitStepper::new(&model, Default::default()).unwrap();
     let e = s.step(&model, &mut state).unwrap_err();
-    assert!(e.to_string().starts_with("implicit.contact = vertex "), "{e}");
+    assert!(
+        e.to_string().starts_with("implicit.contact = vertex "),
+        "{e}"
+    );
     model
         .set_ground(Some(fem_solvers::Ground::horizontal(-1.0)))
         .unwrap();

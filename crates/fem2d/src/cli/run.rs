@@ -254,6 +254,16 @@ pub fn run(args: &RunArgs) -> Result<(), String> {
                 .map_or_else(|| "-".to_owned(), |r| format!("{r:.3e} N"))
         );
     }
+    if let Some(gap) = s.contact_min_gap {
+        println!(
+            "contact: smallest gap {gap:.3e} m{}, peak contact force {:.4e} N, {} contacts at the end carrying [{:.4e}, {:.4e}] N",
+            if gap < 0.0 { " (penetration)" } else { "" },
+            s.contact_peak_force,
+            s.final_contacts,
+            s.final_contact_force[0],
+            s.final_contact_force[1]
+        );
+    }
     println!(
         "max von Mises {:.4e} Pa (step {}, element {} at [{}, {}] m), min det F {}, inverted elements {}",
         s.max_von_mises,
