@@ -153,6 +153,13 @@ pub(crate) struct BarrierContact {
     lags: Vec<Lag>,
     contacts: Vec<Contact>,
     tether: Real,
+    /// How near (m) a pair must come to be a candidate: `d_hat`, or more for solvers that
+    /// move vertices one at a time between broad phases (VBD).
+    margin: Real,
+    /// Per soft vertex, the candidate pairs and lagged friction pairs it belongs to, with its
+    /// place in the pair (0 = p, 1 = a, 2 = b): compressed rows over the vertices.
+    vertex_start: Vec<u32>,
+    vertex_items: Vec<(u32, u8, bool)>,
 }
 
 /// `R(theta) l` and its derivative `perp(R l)`.
@@ -262,6 +269,9 @@ impl BarrierContact {
             lags: Vec::new(),
             contacts: Vec::new(),
             tether: 1e6 * modulus,
+            margin: d_hat,
+            vertex_start: Vec::new(),
+            vertex_items: Vec::new(),
         }
     }
 
@@ -412,7 +422,7 @@ impl BarrierContact {
             Some(d) => x[v] + d[v],
             None => x[v],
         };
-        let margin = self.d_hat;
+        let margin = self.margin;
         self.pairs.clear();
         // Ground: every boundary vertex whose swept box comes within d_hat.
         if let Some(g) = self.ground {
@@ -754,6 +764,11 @@ impl BarrierContact {
     /// The largest step fraction in `(0, 1]` along `(dx, self.dq)` from `(x, self.q)` that keeps
     /// every candidate pair apart (by additive CCD; 1 when nothing comes close).
     pub(crate) fn max_step(&self, x: &[Vec2], dx: &[Vec2]) -> Real {
+        self.max_step_with(x, dx, CCD_SEPARATION)
+    }
+
+    /// As [`BarrierContact::max_step`], closing no gap to less than `separation` of itself.
+    pub(crate) fn max_step_with(&self, x: &[Vec2], dx: &[Vec2], separation: Real) -> Real {
         let mut q_end = Vec::new();
         self.trial_poses(1.0, &mut q_end);
         let mut alpha: Real = 1.0;
@@ -769,13 +784,13 @@ impl BarrierContact {
                 let g = self.ground.as_ref().expect("ground pair");
                 let h0 = (start[0] - g.point).dot(&g.normal);
                 let h1 = (end[0] - g.point).dot(&g.normal);
-                if h1 < CCD_SEPARATION * h0 {
-                    alpha = alpha.min((1.0 - CCD_SEPARATION) * h0 / (h0 - h1));
+                if h1 < separation * h0 {
+                    alpha = alpha.min((1.0 - separation) * h0 / (h0 - h1));
                 }
                 continue;
             }
             let disp = [end[0] - start[0], end[1] - start[1], end[2] - start[2]];
-            if let Some(t) = point_segment_toi(start, disp, CCD_SEPARATION) {
+            if let Some(t) = point_segment_toi(start, disp, separation) {
                 alpha = alpha.min(t);
             }
         }
@@ -835,6 +850,282 @@ impl BarrierContact {
             }
         }
         best
+    }
+
+    /// Collect candidate pairs up to `margin` (>= `d_hat`) apart instead of `d_hat`.
+    pub(crate) fn set_margin(&mut self, margin: Real) {
+        self.margin = margin.max(self.d_hat);
+    }
+
+    /// The activation distance, m.
+    pub(crate) fn d_hat(&self) -> Real {
+        self.d_hat
+    }
+
+    /// The stiffness tethering a kinematic obstacle to its schedule, N/m per unit thickness
+    /// (and times the squared radius per radian). Default `1e6` times the P-wave modulus.
+    pub(crate) fn set_tether(&mut self, stiffness: Real) {
+        self.tether = stiffness;
+    }
+
+    /// Set the obstacles' line-search direction `dq` to their targets (from their poses).
+    pub(crate) fn aim_at_targets(&mut self) {
+        for b in &self.bodies {
+            let (p, t) = (self.q[b.obstacle], b.target);
+            self.dq[b.first] = t[0] - p[0];
+            self.dq[b.first + 1] = t[1] - p[1];
+            if b.rotates {
+                self.dq[b.first + 2] = t[2] - p[2];
+            }
+        }
+    }
+
+    /// Whether soft vertex `v` belongs to a candidate or lagged pair (after
+    /// [`BarrierContact::index_vertices`]).
+    pub(crate) fn vertex_has_pairs(&self, v: usize) -> bool {
+        self.vertex_start.len() > v + 1 && self.vertex_start[v + 1] > self.vertex_start[v]
+    }
+
+    /// Whether soft vertex `v` lies on the boundary (can touch anything).
+    pub(crate) fn on_boundary(&self, v: usize) -> bool {
+        self.boundary_vertices.binary_search(&(v as u32)).is_ok()
+    }
+
+    /// The barrier and friction energy of soft vertex `v`'s pairs with `v` moved to `p` (the
+    /// rest at `x`); infinite when a pair touches.
+    pub(crate) fn vertex_energy(&self, v: usize, x: &[Vec2], p: Vec2) -> Real {
+        if self.vertex_start.len() <= v + 1 {
+            return 0.0;
+        }
+        let s_hat = self.d_hat * self.d_hat;
+        let (a, b) = (
+            self.vertex_start[v] as usize,
+            self.vertex_start[v + 1] as usize,
+        );
+        let mut e = 0.0;
+        for &(k, slot, lagged) in &self.vertex_items[a..b] {
+            let pair = if lagged {
+                self.lag_pair(&self.lags[k as usize])
+            } else {
+                self.pairs[k as usize]
+            };
+            let mut pts = self.points(&pair, x, &self.q);
+            pts[slot as usize] = p;
+            if lagged {
+                let lag = &self.lags[k as usize];
+                let then = self.points(&pair, &self.x_start, &self.q_start);
+                let w = [1.0, -(1.0 - lag.beta), -lag.beta];
+                let mut rel = Vec2::zeros();
+                for i in 0..3 {
+                    rel += (pts[i] - then[i]) * w[i];
+                }
+                let (f0, _, _) = mollifier(rel.dot(&lag.tangent).abs(), self.eps_x);
+                e += self.mu * lag.lambda * f0;
+            } else {
+                let (sq, _, _) = self.geometry(&pair, pts[0], pts[1], pts[2]);
+                if sq <= 0.0 {
+                    return Real::INFINITY;
+                }
+                e += self.kappa * barrier(sq, s_hat).0;
+            }
+        }
+        e
+    }
+
+    /// Index the candidate pairs (of the last `prepare`) and the lagged friction pairs by soft
+    /// vertex, for [`BarrierContact::vertex_terms`] and [`BarrierContact::vertex_max_step`].
+    pub(crate) fn index_vertices(&mut self, n_vertices: usize) {
+        self.vertex_start.clear();
+        self.vertex_start.resize(n_vertices + 1, 0);
+        let lag_pairs: Vec<Pair> = self.lags.iter().map(|l| self.lag_pair(l)).collect();
+        let each = |pairs: &[Pair], f: &mut dyn FnMut(u32, u32, u8)| {
+            for (k, pair) in pairs.iter().enumerate() {
+                for (slot, pt) in [pair.p, pair.a, pair.b].into_iter().enumerate() {
+                    if let Point::Soft(v) = pt {
+                        f(v, k as u32, slot as u8);
+                    }
+                }
+            }
+        };
+        let start = &mut self.vertex_start;
+        each(&self.pairs, &mut |v, _, _| start[v as usize + 1] += 1);
+        each(&lag_pairs, &mut |v, _, _| start[v as usize + 1] += 1);
+        for v in 0..n_vertices {
+            start[v + 1] += start[v];
+        }
+        self.vertex_items.clear();
+        self.vertex_items
+            .resize(start[n_vertices] as usize, (0, 0, false));
+        let mut fill: Vec<u32> = start[..n_vertices].to_vec();
+        let items = &mut self.vertex_items;
+        each(&self.pairs, &mut |v, k, slot| {
+            items[fill[v as usize] as usize] = (k, slot, false);
+            fill[v as usize] += 1;
+        });
+        each(&lag_pairs, &mut |v, k, slot| {
+            items[fill[v as usize] as usize] = (k, slot, true);
+            fill[v as usize] += 1;
+        });
+    }
+
+    /// The barrier and friction terms' gradient and Hessian block (`h00, h01, h11`, not
+    /// projected) with respect to soft vertex `v` at `x` (the obstacles at `self.q`).
+    pub(crate) fn vertex_terms(&self, v: usize, x: &[Vec2]) -> (Vec2, [Real; 3]) {
+        let s_hat = self.d_hat * self.d_hat;
+        let mut g = Vec2::zeros();
+        let mut h = [0.0; 3];
+        if self.vertex_start.len() <= v + 1 {
+            return (g, h);
+        }
+        let (a, b) = (
+            self.vertex_start[v] as usize,
+            self.vertex_start[v + 1] as usize,
+        );
+        for &(k, slot, lagged) in &self.vertex_items[a..b] {
+            let i = 2 * slot as usize;
+            let (g6, h6) = if lagged {
+                let lag = &self.lags[k as usize];
+                let (u, du) = self.slip(lag, x, &self.q);
+                let (_, f1, f2) = mollifier(u.abs(), self.eps_x);
+                let scale = self.mu * lag.lambda;
+                (
+                    du * (scale * f1 * u.signum()),
+                    du * du.transpose() * (scale * f2),
+                )
+            } else {
+                let pair = &self.pairs[k as usize];
+                let [p, pa, pb] = self.points(pair, x, &self.q);
+                if pair.ground {
+                    let gr = self.ground.as_ref().expect("ground pair");
+                    let hgt = (p - gr.point).dot(&gr.normal);
+                    let sq = hgt * hgt;
+                    if hgt <= 0.0 || sq >= s_hat {
+                        continue;
+                    }
+                    let (_, db, d2b) = barrier(sq, s_hat);
+                    let ds = gr.normal * (2.0 * hgt);
+                    let gp = ds * (self.kappa * db);
+                    let n = gr.normal;
+                    let hp =
+                        (ds * ds.transpose() * d2b + n * n.transpose() * (2.0 * db)) * self.kappa;
+                    g += gp;
+                    h[0] += hp[(0, 0)];
+                    h[1] += hp[(0, 1)];
+                    h[2] += hp[(1, 1)];
+                    continue;
+                }
+                let (sq, ds, d2s, _) = point_segment_distance2(p, pa, pb);
+                if sq >= s_hat || sq <= 0.0 {
+                    continue;
+                }
+                let (_, db, d2b) = barrier(sq, s_hat);
+                (
+                    ds * (self.kappa * db),
+                    (ds * ds.transpose() * d2b + d2s * db) * self.kappa,
+                )
+            };
+            g += Vec2::new(g6[i], g6[i + 1]);
+            h[0] += h6[(i, i)];
+            h[1] += 0.5 * (h6[(i, i + 1)] + h6[(i + 1, i)]);
+            h[2] += h6[(i + 1, i + 1)];
+        }
+        (g, h)
+    }
+
+    /// The largest fraction in `(0, 1]` of the move `d` of soft vertex `v` alone (the other
+    /// points held) that keeps its candidate pairs apart.
+    pub(crate) fn vertex_max_step(&self, v: usize, x: &[Vec2], d: Vec2) -> Real {
+        let mut alpha: Real = 1.0;
+        if self.vertex_start.len() <= v + 1 {
+            return alpha;
+        }
+        let (a, b) = (
+            self.vertex_start[v] as usize,
+            self.vertex_start[v + 1] as usize,
+        );
+        for &(k, slot, lagged) in &self.vertex_items[a..b] {
+            if lagged {
+                continue;
+            }
+            let pair = &self.pairs[k as usize];
+            let start = self.points(pair, x, &self.q);
+            if pair.ground {
+                let g = self.ground.as_ref().expect("ground pair");
+                let h0 = (start[0] - g.point).dot(&g.normal);
+                let h1 = h0 + d.dot(&g.normal);
+                if h1 < CCD_SEPARATION * h0 {
+                    alpha = alpha.min((1.0 - CCD_SEPARATION) * h0 / (h0 - h1));
+                }
+                continue;
+            }
+            let mut disp = [Vec2::zeros(); 3];
+            disp[slot as usize] = d;
+            if let Some(t) = point_segment_toi(start, disp, CCD_SEPARATION) {
+                alpha = alpha.min(t);
+            }
+        }
+        alpha
+    }
+
+    /// One Newton step on every moving obstacle's pose (the soft vertices held at `x`):
+    /// inertia or tether, weight, and the barrier and friction of its pairs, the step limited
+    /// by the CCD and to `cap` metres of motion of any corner. Uses the pairs of the last
+    /// `prepare`.
+    pub(crate) fn body_step(&mut self, x: &[Vec2], cap: Real) {
+        if self.bodies.is_empty() {
+            return;
+        }
+        let n = self.n_extra;
+        let mut g = vec![0.0; n];
+        let mut hm = nalgebra::DMatrix::<Real>::zeros(n, n);
+        let q = self.q.clone();
+        self.derivatives(
+            x,
+            &q,
+            &mut |d, v| {
+                if let Dof::Extra(k) = d {
+                    g[k] += v;
+                }
+            },
+            Some(&mut |a, b, v| {
+                if let (Dof::Extra(i), Dof::Extra(j)) = (a, b) {
+                    hm[(i, j)] += v;
+                }
+            }),
+        );
+        // Each body's block is positive definite (inertia or tether) unless it is a free body
+        // in statics, which VBD never is.
+        let Some(chol) = hm.cholesky() else {
+            return;
+        };
+        let step = chol.solve(&-nalgebra::DVector::from_vec(g));
+        self.dq.copy_from_slice(step.as_slice());
+        // The largest corner motion, capped.
+        let mut motion: Real = 0.0;
+        for b in &self.bodies {
+            let r = self.polygons[b.obstacle]
+                .iter()
+                .map(|l| l.norm())
+                .fold(0.0, Real::max);
+            let mut m = (self.dq[b.first].powi(2) + self.dq[b.first + 1].powi(2)).sqrt();
+            if b.rotates {
+                m += r * self.dq[b.first + 2].abs();
+            }
+            motion = motion.max(m);
+        }
+        let mut alpha: Real = if motion > cap { cap / motion } else { 1.0 };
+        alpha = alpha.min(self.rotation_limit(x));
+        for d in self.dq.iter_mut() {
+            *d *= alpha;
+        }
+        // Half the gap at most: the soft vertices answer in the next sweep (a vertex's Newton
+        // step on the barrier can about double its gap), so the two sides keep pace; closing
+        // 90 % as the Newton solvers do would pin the gap near zero, jamming both.
+        let still = vec![Vec2::zeros(); x.len()];
+        let t = self.max_step_with(x, &still, 0.5);
+        let mut q_new = Vec::new();
+        self.trial_poses(t, &mut q_new);
+        self.q = q_new;
     }
 
     /// The contacts found by the last [`BarrierContact::record`].

@@ -452,6 +452,24 @@ impl Obstacle {
         }
     }
 
+    /// A kinematic obstacle's pose `[x, y, angle]` at time `t` on its schedule from its
+    /// initial pose (`None` for other obstacles).
+    pub(crate) fn scheduled_pose(&self, t: Real) -> Option<[Real; 3]> {
+        if let ObstacleMotion::Kinematic {
+            velocity,
+            angular_velocity,
+            start,
+            end,
+        } = self.motion
+        {
+            let moved = window_overlap(0.0, t, start, end);
+            let c = self.centroid + velocity * moved;
+            Some([c.x, c.y, angular_velocity * moved])
+        } else {
+            None
+        }
+    }
+
     /// Advance a kinematic obstacle's pose over `[t, t + dt]` (velocity = mean over the step).
     pub(crate) fn advance_kinematic(&self, body: &mut BodyState, t: Real, dt: Real) {
         if let ObstacleMotion::Kinematic {

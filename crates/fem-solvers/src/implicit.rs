@@ -13,8 +13,13 @@
 //! and dissipates energy (more at larger `h`): at a time step where explicit FEM blows up it
 //! stays bounded, and without external load the total energy never increases.
 //!
-//! Kinematic vertices follow their schedule exactly as in the explicit stepper. Contact is not
-//! handled by this stepper: a model with a ground or obstacles is rejected at construction.
+//! Kinematic vertices follow their schedule exactly as in the explicit stepper. With a ground
+//! or obstacles, barrier contact joins the potential ([`crate::barrier_contact`], IPC-style):
+//! dynamic and kinematic obstacles are unknowns of the same Newton system, every line search
+//! starts at the largest step the CCD allows, and the starting guess is the prediction only as
+//! far as it stays free of contact. The body must start apart from the ground and the
+//! obstacles (a step that starts touching is an error naming the pair). After each step
+//! [`ImplicitStepper::min_distance`] and [`Stepper::contacts`] report the gaps and forces.
 //!
 //! The starting guess is `x_hat` when its potential is finite, else the current positions (always
 //! valid), so a large step never starts from an inverted configuration.
@@ -102,8 +107,8 @@ pub struct ImplicitStepper {
 }
 
 impl ImplicitStepper {
-    /// A stepper for `model`: validates the parameters, rejects contact geometry, and does the
-    /// symbolic analysis of the Hessian's pattern.
+    /// A stepper for `model`: validates the parameters, sets up barrier contact when the model
+    /// has a ground or obstacles, and does the symbolic analysis of the Hessian's pattern.
     pub fn new<E: Energy>(model: &Model<E>, params: ImplicitParams) -> Result<Self, SolverError> {
         params.validate()?;
         let kinematic: Vec<usize> = model.kinematics().vertices().collect();
@@ -229,8 +234,12 @@ impl Stepper for ImplicitStepper {
                     }
                     ObstacleMotion::Static => {}
                 }
-                self.targets
-                    .push([body.position.x, body.position.y, body.angle]);
+                // A kinematic obstacle aims at its schedule (so a lag never accumulates).
+                self.targets.push(obs.scheduled_pose(t + h).unwrap_or([
+                    body.position.x,
+                    body.position.y,
+                    body.angle,
+                ]));
             }
             c.begin(
                 &state.x,

@@ -149,7 +149,7 @@ impl PdStepper {
             return Err(SolverError::invalid(
                 "pd.contact",
                 "ground or obstacles",
-                "contact is handled by the explicit, PBD and XPBD steppers only",
+                "contact is handled by the explicit, pbd, xpbd, implicit, static and vbd steppers",
             ));
         }
         let mesh = model.mesh();
@@ -329,6 +329,7 @@ impl Stepper for PdStepper {
             &self.els,
             &mut self.x,
             &mut self.v_new,
+            None,
             h,
             t + h,
             self.decay,

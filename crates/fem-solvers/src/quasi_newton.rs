@@ -185,7 +185,7 @@ impl QuasiNewtonStepper {
             return Err(SolverError::invalid(
                 "quasi-newton.contact",
                 "ground or obstacles",
-                "contact is handled by the explicit, PBD and XPBD steppers only",
+                "contact is handled by the explicit, pbd, xpbd, implicit, static and vbd steppers",
             ));
         }
         let mesh = model.mesh();
@@ -494,6 +494,7 @@ impl Stepper for QuasiNewtonStepper {
             &self.els,
             &mut self.x,
             &mut self.v_new,
+            None,
             h,
             t + h,
             self.decay,

@@ -17,8 +17,10 @@
 //! moves from its position at `t = 0` by its schedule's whole displacement
 //! `velocity * (end - start)` ([`PrescribedMotion`](crate::PrescribedMotion)) times the load
 //! factor, so its window must be finite (an infinite `end` on a moving vertex is rejected at
-//! construction, naming the field). Contact is not handled: a model with a ground or obstacles
-//! is rejected.
+//! construction, naming the field). With a ground or obstacles, barrier contact joins the
+//! potential as in [`crate::implicit`] (friction smoothed over `d_hat` instead of `eps_v h`):
+//! dynamic obstacles are unknowns held up by contact alone (no inertia), and kinematic ones move
+//! by their schedule's whole motion times the load factor (their windows must end).
 //!
 //! A step on a state whose load factor is already 1 (or more) does nothing and returns `Ok`
 //! with 0 iterations (and the state's inversion statistics), so a loop of a fixed number of
@@ -130,8 +132,8 @@ pub struct StaticStepper {
 }
 
 impl StaticStepper {
-    /// A stepper for `model`: validates the parameters, rejects contact geometry and prescribed
-    /// motions without an end, and does the symbolic analysis of the Hessian's pattern.
+    /// A stepper for `model`: validates the parameters, sets up barrier contact, rejects
+    /// prescribed motions (of vertices or obstacles) without an end, and does the symbolic analysis of the Hessian's pattern.
     pub fn new<E: Energy>(model: &Model<E>, params: StaticParams) -> Result<Self, SolverError> {
         params.validate()?;
         for (o, obs) in model.obstacles().iter().enumerate() {

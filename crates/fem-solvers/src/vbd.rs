@@ -58,8 +58,19 @@
 //! forbidding inversion is dropped (that sweep's plain result is kept) and the sequence
 //! restarts.
 //!
-//! Contact is not handled yet: a model with a ground or obstacles is rejected at construction
-//! (implicit Euler's restriction too).
+//! **Contact** (a ground or obstacles) is implicit Euler's barrier term
+//! ([`crate::barrier_contact`]) in each vertex's local potential: its pairs' barrier and lagged
+//! friction join the vertex's gradient and (projected) block, every vertex move is limited by
+//! the CCD of its pairs (the others held) and to `2 d_hat` per sweep (the broad phase before
+//! each sweep reaches `3 d_hat`, so no pair it missed can come close), and a vertex with pairs
+//! always takes the line search. Dynamic and kinematic obstacles take one Newton step on
+//! their pose after each sweep, closing at most half of any gap (a vertex's Newton step on the
+//! barrier about doubles its gap, so both sides keep pace); a kinematic obstacle is tethered
+//! to its schedule at ten times the body's modulus. The initial guess (and the obstacles'
+//! predicted poses) are taken only as far as the CCD allows, and Chebyshev acceleration is
+//! off. What this converges to is implicit Euler's step with barrier contact; an obstacle
+//! pushed faster than the gaps let the sweeps follow lags its schedule (measured in
+//! `tests/suite/barrier_contact.rs`).
 //!
 //! Registered as `vbd` ([`Solver`]); scene keys `dt`, `substeps`, `iterations`, `damping`,
 //! `init`, `chebyshev_rho`, `line_search`.
@@ -69,8 +80,10 @@ use fem_core::math::{Mat2, Real, Vec2, exp};
 use fem_core::mesh::VertexAdjacency;
 use fem_core::par::prelude::*;
 
+use crate::barrier_contact::BarrierContact;
 use crate::colour::VertexColouring;
 use crate::commit::{Kinematic, StepEnd};
+use crate::contact::{BodyState, Contact, ObstacleMotion};
 use crate::error::{SolverError, check_count, check_non_negative, check_positive, check_rho};
 use crate::grab::{Spring, spring_of};
 use crate::implicit::external_load;
@@ -208,6 +221,13 @@ pub struct VbdStepper {
     stats: VbdStats,
     /// The model layout the vertices were coloured for.
     layout: u64,
+    /// Barrier contact, when the model has a ground or obstacles.
+    contact: Option<BarrierContact>,
+    /// The obstacles' target poses of the substep and their new states.
+    targets: Vec<[Real; 3]>,
+    bodies_new: Vec<BodyState>,
+    /// The smallest distance over the candidate pairs at the end of the last step, m.
+    min_distance: Real,
 }
 
 /// One vertex update: gradient norm before it (N), and how it went.
@@ -276,6 +296,9 @@ struct Local<'a, E: Energy> {
     modulus: Real,
     /// The springs of a spring grab, sorted by vertex.
     springs: &'a [Spring],
+    /// Barrier contact (pairs indexed by vertex) and the largest move of a boundary vertex
+    /// per sweep, m.
+    contact: Option<(&'a BarrierContact, Real)>,
 }
 
 impl<E: Energy> Local<'_, E> {
@@ -286,6 +309,9 @@ impl<E: Energy> Local<'_, E> {
         let mut e = 0.5 * mw * (p - self.target[v]).norm_squared() - self.load[v].dot(&(p - x[v]));
         if let Some(s) = spring_of(self.springs, v) {
             e += 0.5 * s.stiffness * (p - s.goal).norm_squared();
+        }
+        if let Some((c, _)) = self.contact {
+            e += c.vertex_energy(v, x, p);
         }
         for &(t, corner) in self.adj.of(v) {
             let el = &self.els[t as usize];
@@ -320,6 +346,9 @@ impl<E: Energy> Local<'_, E> {
             h11 += s.stiffness;
             spring_energy = 0.5 * s.stiffness * (xi - s.goal).norm_squared();
         }
+        // A vertex with contact pairs always searches its line: a Newton step on the log
+        // barrier can overshoot towards it, and only the potential tells.
+        let search = self.line_search || self.contact.is_some_and(|(c, _)| c.vertex_has_pairs(v));
         let mut elastic = 0.0;
         let mut elastic_magnitude = 0.0;
         let mut local_area = 0.0;
@@ -328,12 +357,12 @@ impl<E: Energy> Local<'_, E> {
         let mut fan_det = [0.0; FAN];
         let mut fan_w = [Vec2::zeros(); FAN];
         let fan = self.adj.of(v);
-        let cheap_orientation = self.forbids_inversion && !self.line_search && fan.len() <= FAN;
+        let cheap_orientation = self.forbids_inversion && !search && fan.len() <= FAN;
         for (i, &(t, corner)) in fan.iter().enumerate() {
             let el = &self.els[t as usize];
             local_area += el.area;
             let f = deformation_gradient(el, x);
-            if self.line_search {
+            if search {
                 let psi = self.energy.psi(&f);
                 elastic += el.area * psi;
                 elastic_magnitude += el.area * psi.abs();
@@ -356,6 +385,20 @@ impl<E: Energy> Local<'_, E> {
             h01 += p01;
             h11 += p11;
         }
+        // Barrier and friction of the vertex's contact pairs, their block made positive
+        // semi-definite like the triangles'.
+        let mut contact_energy = 0.0;
+        if let Some((c, _)) = self.contact {
+            let (gc, [c00, c01, c11]) = c.vertex_terms(v, x);
+            g += gc;
+            let (p00, p01, p11) = psd2(c00, c01, c11);
+            h00 += p00;
+            h01 += p01;
+            h11 += p11;
+            if search {
+                contact_energy = c.vertex_energy(v, x, xi);
+            }
+        }
         let gradient = g.norm();
         let mut out = Outcome {
             gradient,
@@ -368,13 +411,23 @@ impl<E: Energy> Local<'_, E> {
             out.rejected = gradient.is_finite();
             return (xi, out);
         }
-        let step = Vec2::new(h11 * g.x - h01 * g.y, h00 * g.y - h01 * g.x) / -det;
-        if !self.line_search && !self.forbids_inversion {
+        let mut step = Vec2::new(h11 * g.x - h01 * g.y, h00 * g.y - h01 * g.x) / -det;
+        if let Some((c, cap)) = self.contact
+            && c.on_boundary(v)
+        {
+            // No farther than the sweep's candidate pairs reach, and no crossing (CCD).
+            let len = step.norm();
+            if len > cap {
+                step *= cap / len;
+            }
+            step *= c.vertex_max_step(v, x, step);
+        }
+        if !search && !self.forbids_inversion {
             return (xi + step, out);
         }
         // The starting value, in the same frame as `potential` (inertia and load from x[v]).
         let inertia = 0.5 * mw * (xi - self.target[v]).norm_squared() + spring_energy;
-        let start = inertia + elastic;
+        let start = inertia + elastic + contact_energy;
         // The round-off of the local potential: eps times its terms, and psi's terms are of
         // the order of the modulus, not of psi (as in Newton's line search). A change below it
         // says nothing, and the step is taken when it is valid (finite).
@@ -388,7 +441,7 @@ impl<E: Energy> Local<'_, E> {
         let mut alpha = 1.0;
         for k in 0..=LOCAL_HALVINGS {
             let p = xi + step * alpha;
-            let ok = if self.line_search {
+            let ok = if search {
                 let e = self.potential(v, x, p);
                 e.is_finite() && e <= start + floor
             } else if cheap_orientation {
@@ -422,6 +475,7 @@ pub(crate) fn commit_positions<E: Energy>(
     els: &[PackedElement],
     x: &mut Vec<Vec2>,
     v_new: &mut Vec<Vec2>,
+    bodies: Option<&mut Vec<BodyState>>,
     h: Real,
     until: Real,
     decay: Real,
@@ -436,7 +490,7 @@ pub(crate) fn commit_positions<E: Energy>(
         kinematics: Kinematic::Schedule { t, dt: h, until },
         x,
         v: v_new,
-        bodies: None,
+        bodies,
         known_finite: false,
         inverted: inv.inverted,
         min_det_f: inv.min_det_f,
@@ -461,17 +515,10 @@ pub(crate) fn inversion(els: &[PackedElement], x: &[Vec2]) -> Inversion {
 }
 
 impl VbdStepper {
-    /// A stepper for `model`: validates the parameters, rejects contact geometry, packs the
+    /// A stepper for `model`: validates the parameters, sets up barrier contact, packs the
     /// elements and colours the free vertices.
     pub fn new<E: Energy>(model: &Model<E>, params: VbdParams) -> Result<Self, SolverError> {
         params.validate()?;
-        if model.has_contact() {
-            return Err(SolverError::invalid(
-                "vbd.contact",
-                "ground or obstacles",
-                "contact is handled by the explicit, PBD and XPBD steppers only",
-            ));
-        }
         let mesh = model.mesh();
         let n = mesh.n_vertices();
         let mut free = vec![true; n];
@@ -481,7 +528,21 @@ impl VbdStepper {
         let colouring = VertexColouring::greedy(mesh, &free);
         let slots = colouring.order.len();
         let h = params.dt / params.substeps as Real;
+        let contact = model.has_contact().then(|| {
+            let mut c = BarrierContact::new(model, model.contact_params().friction_velocity * h);
+            c.set_margin(CONTACT_MARGIN * model.contact_params().barrier_distance);
+            // A rigid tether would drive a kinematic obstacle into its barrier faster than
+            // vertex-by-vertex sweeps let the body answer (the gap collapses and both sides
+            // jam): tether at ten times the body's modulus, so a contact force F lags the
+            // obstacle F / (10 M) behind its schedule (it catches up when the force goes).
+            c.set_tether(10.0 * model.p_wave_modulus());
+            c
+        });
         Ok(VbdStepper {
+            contact,
+            targets: Vec::new(),
+            bodies_new: Vec::new(),
+            min_distance: Real::INFINITY,
             h,
             decay: exp(-params.damping * h),
             params,
@@ -515,6 +576,13 @@ impl VbdStepper {
     /// What the last step did.
     pub fn last_stats(&self) -> VbdStats {
         self.stats
+    }
+
+    /// The smallest distance between the soft body and the ground or an obstacle over the
+    /// candidate pairs at the end of the last step, m (infinite when nothing is near, or
+    /// without contact). Barrier contact keeps it positive.
+    pub fn min_distance(&self) -> Real {
+        self.min_distance
     }
 
     /// Forget the previous step's velocity (the adaptive guess then starts afresh), e.g.
@@ -693,6 +761,21 @@ impl Stepper for VbdStepper {
                 kinematics.apply(t, h, until, &state.x, &mut self.x, &mut self.v_new);
                 stats.fallback_guess = true;
             }
+            if let Some(c) = self.contact.as_mut() {
+                start_contact(
+                    c,
+                    model,
+                    state,
+                    h,
+                    &mut self.targets,
+                    &mut self.x,
+                    &mut self.v_new,
+                )?;
+            }
+            let cap = self
+                .contact
+                .as_ref()
+                .map_or(0.0, |c| (CONTACT_MARGIN - 1.0) * c.d_hat());
             let local = Local {
                 energy: model.energy(),
                 els: &self.els,
@@ -705,11 +788,23 @@ impl Stepper for VbdStepper {
                 forbids_inversion: self.forbids_inversion,
                 modulus: model.p_wave_modulus(),
                 springs: model.springs(),
+                contact: None,
             };
+            // Chebyshev's extrapolation could carry a vertex across an obstacle: off with
+            // contact.
+            let rho = if self.contact.is_some() { 0.0 } else { rho };
             if rho > 0.0 {
                 self.chebyshev.start(&self.x);
             }
             for _ in 0..self.params.iterations {
+                if let Some(c) = self.contact.as_mut() {
+                    c.prepare(&self.x, None);
+                    c.index_vertices(n);
+                }
+                let local = Local {
+                    contact: self.contact.as_ref().map(|c| (c, cap)),
+                    ..local
+                };
                 residual = sweep(
                     &local,
                     &self.colouring,
@@ -718,6 +813,11 @@ impl Stepper for VbdStepper {
                     &mut self.outcome,
                     &mut stats,
                 );
+                if let Some(c) = self.contact.as_mut() {
+                    // The moving obstacles' poses: one block Newton step each sweep.
+                    c.prepare(&self.x, None);
+                    c.body_step(&self.x, cap);
+                }
                 if rho > 0.0 {
                     let restarted = self.chebyshev.apply(
                         rho,
@@ -732,12 +832,21 @@ impl Stepper for VbdStepper {
             // The adaptive guess of the next substep reads this substep's starting velocity.
             let prev_v = self.v_prev.get_or_insert_with(|| vec![Vec2::zeros(); n]);
             prev_v.copy_from_slice(&state.v);
+            let bodies = match self.contact.as_mut() {
+                Some(c) => {
+                    end_contact(c, model, state, h, &mut self.bodies_new);
+                    self.min_distance = c.record(&self.x);
+                    Some(&mut self.bodies_new)
+                }
+                None => None,
+            };
             inv = commit_positions(
                 model,
                 state,
                 &self.els,
                 &mut self.x,
                 &mut self.v_new,
+                bodies,
                 h,
                 until,
                 self.decay,
@@ -750,8 +859,126 @@ impl Stepper for VbdStepper {
             inverted: inv.inverted,
             iterations: self.params.iterations * self.params.substeps,
             residual,
-            contacts: 0,
+            contacts: self.contacts().len(),
         })
+    }
+
+    fn contacts(&self) -> &[Contact] {
+        match &self.contact {
+            Some(c) => c.contacts(),
+            None => &[],
+        }
+    }
+}
+
+/// Candidate pairs reach `CONTACT_MARGIN d_hat`; a boundary vertex (or an obstacle) moves at
+/// most `(CONTACT_MARGIN - 1) d_hat` between two broad phases, so no pair outside the list can
+/// come within `d_hat`.
+const CONTACT_MARGIN: Real = 3.0;
+
+/// The start of a substep with barrier contact: the obstacles' targets (inertial predictions
+/// of dynamic bodies, the schedule's poses of kinematic ones) and lagged friction, the start
+/// checked apart, and the initial guess `x` (and the obstacles' poses) moved from the state
+/// towards it only as far as the CCD allows. `scratch` is a buffer of vertex vectors.
+pub(crate) fn start_contact<E: Energy>(
+    c: &mut BarrierContact,
+    model: &Model<E>,
+    state: &State,
+    h: Real,
+    targets: &mut Vec<[Real; 3]>,
+    x: &mut [Vec2],
+    scratch: &mut [Vec2],
+) -> Result<(), SolverError> {
+    let t = state.t;
+    targets.clear();
+    for (obs, b) in model.obstacles().iter().zip(&state.bodies) {
+        let mut body = *b;
+        match obs.motion() {
+            ObstacleMotion::Kinematic { .. } => obs.advance_kinematic(&mut body, t, h),
+            ObstacleMotion::Dynamic { .. } => {
+                body.position += body.velocity * h;
+                body.angle += body.angular_velocity * h;
+            }
+            ObstacleMotion::Static => {}
+        }
+        targets.push(obs.scheduled_pose(t + h).unwrap_or([
+            body.position.x,
+            body.position.y,
+            body.angle,
+        ]));
+    }
+    c.begin(
+        &state.x,
+        &state.bodies,
+        targets,
+        1.0 / (h * h),
+        model.gravity(),
+    );
+    let (d, at) = c.min_start_distance(&state.x);
+    if d <= 0.0 {
+        return Err(SolverError::invalid(
+            "contact",
+            format!("{at} at distance {d:e} m"),
+            "barrier contact needs every soft vertex and obstacle apart at the start of a step (start the body above the ground and clear of obstacles)",
+        ));
+    }
+    c.aim_at_targets();
+    for ((d, xg), x0) in scratch.iter_mut().zip(x.iter()).zip(&state.x) {
+        *d = xg - x0;
+    }
+    let limit = c.rotation_limit(&state.x);
+    for d in scratch.iter_mut() {
+        *d *= limit;
+    }
+    for d in c.dq.iter_mut() {
+        *d *= limit;
+    }
+    c.prepare(&state.x, Some(scratch));
+    // Half of each gap at most, as for the obstacles' steps within the sweeps (see
+    // `BarrierContact::body_step`).
+    let alpha = c.max_step_with(&state.x, scratch, 0.5);
+    for ((xn, x0), d) in x.iter_mut().zip(&state.x).zip(scratch.iter()) {
+        *xn = x0 + d * alpha;
+    }
+    let mut q = Vec::new();
+    c.trial_poses(alpha, &mut q);
+    c.q = q;
+    Ok(())
+}
+
+/// The obstacles' new states at the end of a substep with barrier contact: poses from the
+/// solve, velocities from the motion (dynamic) or the schedule (kinematic).
+pub(crate) fn end_contact<E: Energy>(
+    c: &BarrierContact,
+    model: &Model<E>,
+    state: &State,
+    h: Real,
+    bodies_new: &mut Vec<BodyState>,
+) {
+    bodies_new.clone_from(&state.bodies);
+    for (o, (obs, body)) in model
+        .obstacles()
+        .iter()
+        .zip(bodies_new.iter_mut())
+        .enumerate()
+    {
+        let q = c.q[o];
+        let old = &state.bodies[o];
+        match obs.motion() {
+            ObstacleMotion::Dynamic { .. } => {
+                body.velocity = (Vec2::new(q[0], q[1]) - old.position) / h;
+                body.angular_velocity = (q[2] - old.angle) / h;
+            }
+            ObstacleMotion::Kinematic { .. } => {
+                let mut scheduled = *old;
+                obs.advance_kinematic(&mut scheduled, state.t, h);
+                body.velocity = scheduled.velocity;
+                body.angular_velocity = scheduled.angular_velocity;
+            }
+            ObstacleMotion::Static => {}
+        }
+        body.position = Vec2::new(q[0], q[1]);
+        body.angle = q[2];
     }
 }
 
@@ -762,7 +989,7 @@ impl Solver for VbdStepper {
         title: "VBD",
         summary: "Vertex Block Descent: Gauss-Seidel over vertices on implicit Euler's incremental potential, a 2x2 Newton step each, vertex colouring",
         paper: false,
-        contact: false,
+        contact: true,
         implicit: true,
         iterations: true,
         substeps: true,
