@@ -10,8 +10,10 @@
 //! (stepping time per frame) and compared frame by frame with a converged **reference** of the
 //! same energy: implicit Euler at a hundredth of the frame step with Newton's tolerance 1e-10
 //! (its own first-order error then a hundredth of implicit Euler's at the frame step), or,
-//! for a scene with contact (which implicit Euler does not handle yet), explicit FEM at a
-//! step of at most half its critical time step. The errors are over the whole mesh
+//! for a scene with contact, explicit FEM at a step of at most half its critical time step
+//! (its penalty contact converges to contact without a gap as the step shrinks; implicit
+//! Euler's barrier keeps a cushion of up to `barrier_distance`, 1 mm, which its errors then
+//! include). The errors are over the whole mesh
 //! ([`Errors`]): position RMS and max over all vertices and frames, the relative error of the
 //! peak von Mises stress, the largest absolute area error (the per-triangle area differences,
 //! summed without cancelling, over the body's area) and the most inverted triangles in a
@@ -19,7 +21,7 @@
 //!
 //! A setting is **stable** when its run completes without a blow-up or a solver failure; a
 //! framework that cannot run the scene at all (Projective Dynamics with an energy other than
-//! co-rotational, the implicit family with contact) says why. For each energy x framework the
+//! co-rotational, PD and quasi-Newton with contact) says why. For each energy x framework the
 //! table gives the cheapest stable setting and the most accurate stable setting within the
 //! budget; frameworks are ranked per energy by the latter's position RMS, and one sentence per
 //! energy names the best.
@@ -412,7 +414,7 @@ fn cannot_run(scene: &LoadedScene, energy: EnergyKind, framework: Framework) -> 
     let contact = s.ground.is_some() || !s.obstacles.is_empty();
     if contact && !framework.solver().capabilities().contact {
         return Some(format!(
-            "{} does not handle contact yet, and the scene has a ground or obstacles",
+            "{} does not handle contact, and the scene has a ground or obstacles",
             framework.name()
         ));
     }

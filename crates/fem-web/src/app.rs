@@ -94,6 +94,13 @@ pub struct Hud {
     pub area_change: Real,
     /// The force the hand exerts on the body, N per unit thickness.
     pub grab_force: Option<[Real; 2]>,
+    /// Contacts after the last step (the stepper's: penetrating pairs for penalty and
+    /// projection, pairs within the barrier's reach for barrier contact).
+    pub contacts: usize,
+    /// Their smallest gap, m (negative: penetration; infinite without contacts).
+    pub min_gap: Real,
+    /// Their total force on the body, N per unit thickness.
+    pub contact_force: [Real; 2],
     /// The run stopped on this one-line message (a blow-up); reset recovers.
     pub error: Option<String>,
 }
@@ -411,6 +418,14 @@ impl App {
             &mut self.stress,
         );
         let hud = &mut self.hud;
+        let contacts = self.stepper.contacts();
+        hud.contacts = contacts.len();
+        hud.min_gap = contacts
+            .iter()
+            .map(|c| c.gap)
+            .fold(Real::INFINITY, Real::min);
+        let force: Vec2 = contacts.iter().map(|c| c.normal * c.force).sum();
+        hud.contact_force = [force.x, force.y];
         hud.t = self.state.t;
         hud.step = self.state.step;
         hud.peak_von_mises = self

@@ -280,7 +280,8 @@ pub extern "C" fn field(kind: u32) -> *const f32 {
 /// The heads-up numbers (f64): t, step, steps last frame, steps wanted, physics ms, real-time
 /// factor, slowed (0/1), peak von Mises, inverted, min det F, area error, area change, has
 /// grab force (0/1), force x, force y, stopped on an error (0/1; the message is in the text
-/// buffer).
+/// buffer), contacts, their smallest gap (m; a huge value without contacts), their total
+/// force x, y (N).
 #[unsafe(no_mangle)]
 pub extern "C" fn hud() -> *const f64 {
     with_app(
@@ -307,6 +308,10 @@ pub extern "C" fn hud() -> *const f64 {
                 f[0],
                 f[1],
                 f64::from(u8::from(h.error.is_some())),
+                h.contacts as f64,
+                h.min_gap.min(f64::MAX),
+                h.contact_force[0],
+                h.contact_force[1],
             ])
         },
         std::ptr::null(),

@@ -309,3 +309,34 @@ fn the_debris_can_be_grabbed_and_pushed_onto_the_leg() {
     app.release();
     assert_eq!(app.held(), fem_web::Held::Nothing);
 }
+
+/// Case D under the barrier solvers in the app: at a 90 Hz step the debris lands on the leg
+/// and the body rests on the ground, the heads-up display counts the contacts, their smallest
+/// gap stays positive and their force carries the body's weight once it settles.
+#[test]
+fn case_d_runs_under_implicit_euler_and_vbd_with_contact_in_the_hud() {
+    for solver in ["implicit", "vbd"] {
+        let mut app = App::case("case-d").unwrap();
+        app.set("solver.kind", &format!("\"{solver}\"")).unwrap();
+        app.set("solver.dt", &(1.0 / 90.0).to_string()).unwrap();
+        if solver == "vbd" {
+            app.set("solver.iterations", "50").unwrap();
+        }
+        frames(&mut app, 90);
+        let hud = app.hud().clone();
+        assert!(hud.error.is_none(), "{solver}: {:?}", hud.error);
+        assert!(hud.contacts > 0, "{solver}: no contacts");
+        assert!(
+            hud.min_gap > 0.0 && hud.min_gap < 1e-3,
+            "{solver}: smallest gap {} m",
+            hud.min_gap
+        );
+        // The net contact force on the body balances its weight (70 kg) once the impact has
+        // died down (1.5 s, damping 20/s): within 5 % (VBD at 50 sweeps).
+        assert!(
+            (hud.contact_force[1] - 70.0 * 9.8).abs() < 0.05 * 70.0 * 9.8,
+            "{solver}: contact force {:?} N",
+            hud.contact_force
+        );
+    }
+}

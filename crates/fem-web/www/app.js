@@ -273,6 +273,12 @@ class Pane {
       `min det F       ${h[9].toFixed(4)}\n` +
       `area error |dA| ${(100 * h[10]).toFixed(3)} %\n` +
       `area change     ${(100 * h[11]).toFixed(3)} %\n` +
+      `contacts        ${h[16]}` +
+      (h[16] > 0
+        ? `, smallest gap ${(1000 * h[17]).toFixed(3)} mm${h[17] < 0 ? " (penetration)" : ""}, ` +
+          `force ${h[18].toFixed(1)}, ${h[19].toFixed(1)} N`
+        : "") +
+      `\n` +
       `grab force      ${force}`;
   }
 }
