@@ -160,6 +160,12 @@ pub(crate) struct BarrierContact {
     /// place in the pair (0 = p, 1 = a, 2 = b): compressed rows over the vertices.
     vertex_start: Vec<u32>,
     vertex_items: Vec<(u32, u8, bool)>,
+    /// Scratch buffers (sized once, reused: no allocation per iteration or sweep).
+    q_end: Vec<[Real; 3]>,
+    corners: Vec<(Vec2, Vec2)>,
+    fill: Vec<u32>,
+    lag_pairs: Vec<Pair>,
+    still: Vec<Vec2>,
 }
 
 /// `R(theta) l` and its derivative `perp(R l)`.
@@ -272,6 +278,11 @@ impl BarrierContact {
             margin: d_hat,
             vertex_start: Vec::new(),
             vertex_items: Vec::new(),
+            q_end: Vec::new(),
+            corners: Vec::new(),
+            fill: Vec::new(),
+            lag_pairs: Vec::new(),
+            still: Vec::new(),
         }
     }
 
@@ -398,26 +409,12 @@ impl BarrierContact {
     /// The candidate pairs for the motion from `(x, q)` along `(dx, self.dq)` (whole step;
     /// `None`: no motion): every pair whose boxes, swept and grown by `d_hat`, overlap.
     pub(crate) fn prepare(&mut self, x: &[Vec2], dx: Option<&[Vec2]>) {
-        let q_end: Vec<[Real; 3]> = match dx {
-            Some(_) => self
-                .q
-                .iter()
-                .enumerate()
-                .map(|(o, p)| {
-                    let mut e = *p;
-                    if let Some(b) = self.body_of[o] {
-                        let b = &self.bodies[b];
-                        e[0] += self.dq[b.first];
-                        e[1] += self.dq[b.first + 1];
-                        if b.rotates {
-                            e[2] += self.dq[b.first + 2];
-                        }
-                    }
-                    e
-                })
-                .collect(),
-            None => self.q.clone(),
-        };
+        let mut q_end = std::mem::take(&mut self.q_end);
+        if dx.is_some() {
+            self.trial_poses(1.0, &mut q_end);
+        } else {
+            q_end.clone_from(&self.q);
+        }
         let end = |v: usize| match dx {
             Some(d) => x[v] + d[v],
             None => x[v],
@@ -442,6 +439,7 @@ impl BarrierContact {
             }
         }
         if self.polygons.is_empty() {
+            self.q_end = q_end;
             return;
         }
         self.boxes.clear();
@@ -453,12 +451,13 @@ impl BarrierContact {
         self.grid.build(&self.boxes);
         for o in 0..self.polygons.len() {
             let n = self.polygons[o].len();
-            let corner_box = |k: usize| {
+            let mut corners = std::mem::take(&mut self.corners);
+            corners.clear();
+            for k in 0..n {
                 let c0 = self.corner(&self.q, o as u32, k as u32);
                 let c1 = self.corner(&q_end, o as u32, k as u32);
-                (c0, c1)
-            };
-            let corners: Vec<(Vec2, Vec2)> = (0..n).map(corner_box).collect();
+                corners.push((c0, c1));
+            }
             for k in 0..n {
                 let (a0, a1) = corners[k];
                 let (b0, b1) = corners[(k + 1) % n];
@@ -502,7 +501,9 @@ impl BarrierContact {
                 }
                 self.found = found;
             }
+            self.corners = corners;
         }
+        self.q_end = q_end;
         // One pair per feature couple, in a fixed order.
         self.pairs.sort_unstable_by_key(|p| key(&p.kind));
         self.pairs.dedup_by_key(|p| key(&p.kind));
@@ -763,13 +764,13 @@ impl BarrierContact {
 
     /// The largest step fraction in `(0, 1]` along `(dx, self.dq)` from `(x, self.q)` that keeps
     /// every candidate pair apart (by additive CCD; 1 when nothing comes close).
-    pub(crate) fn max_step(&self, x: &[Vec2], dx: &[Vec2]) -> Real {
+    pub(crate) fn max_step(&mut self, x: &[Vec2], dx: &[Vec2]) -> Real {
         self.max_step_with(x, dx, CCD_SEPARATION)
     }
 
     /// As [`BarrierContact::max_step`], closing no gap to less than `separation` of itself.
-    pub(crate) fn max_step_with(&self, x: &[Vec2], dx: &[Vec2], separation: Real) -> Real {
-        let mut q_end = Vec::new();
+    pub(crate) fn max_step_with(&mut self, x: &[Vec2], dx: &[Vec2], separation: Real) -> Real {
+        let mut q_end = std::mem::take(&mut self.q_end);
         self.trial_poses(1.0, &mut q_end);
         let mut alpha: Real = 1.0;
         for pair in &self.pairs {
@@ -794,6 +795,7 @@ impl BarrierContact {
                 alpha = alpha.min(t);
             }
         }
+        self.q_end = q_end;
         alpha
     }
 
@@ -937,7 +939,9 @@ impl BarrierContact {
     pub(crate) fn index_vertices(&mut self, n_vertices: usize) {
         self.vertex_start.clear();
         self.vertex_start.resize(n_vertices + 1, 0);
-        let lag_pairs: Vec<Pair> = self.lags.iter().map(|l| self.lag_pair(l)).collect();
+        let mut lag_pairs = std::mem::take(&mut self.lag_pairs);
+        lag_pairs.clear();
+        lag_pairs.extend(self.lags.iter().map(|l| self.lag_pair(l)));
         let each = |pairs: &[Pair], f: &mut dyn FnMut(u32, u32, u8)| {
             for (k, pair) in pairs.iter().enumerate() {
                 for (slot, pt) in [pair.p, pair.a, pair.b].into_iter().enumerate() {
@@ -956,7 +960,9 @@ impl BarrierContact {
         self.vertex_items.clear();
         self.vertex_items
             .resize(start[n_vertices] as usize, (0, 0, false));
-        let mut fill: Vec<u32> = start[..n_vertices].to_vec();
+        let mut fill = std::mem::take(&mut self.fill);
+        fill.clear();
+        fill.extend_from_slice(&start[..n_vertices]);
         let items = &mut self.vertex_items;
         each(&self.pairs, &mut |v, k, slot| {
             items[fill[v as usize] as usize] = (k, slot, false);
@@ -966,6 +972,8 @@ impl BarrierContact {
             items[fill[v as usize] as usize] = (k, slot, true);
             fill[v as usize] += 1;
         });
+        self.fill = fill;
+        self.lag_pairs = lag_pairs;
     }
 
     /// The barrier and friction terms' gradient and Hessian block (`h00, h01, h11`, not
@@ -1121,11 +1129,15 @@ impl BarrierContact {
         // Half the gap at most: the soft vertices answer in the next sweep (a vertex's Newton
         // step on the barrier can about double its gap), so the two sides keep pace; closing
         // 90 % as the Newton solvers do would pin the gap near zero, jamming both.
-        let still = vec![Vec2::zeros(); x.len()];
+        let mut still = std::mem::take(&mut self.still);
+        still.clear();
+        still.resize(x.len(), Vec2::zeros());
         let t = self.max_step_with(x, &still, 0.5);
-        let mut q_new = Vec::new();
+        self.still = still;
+        let mut q_new = std::mem::take(&mut self.q_end);
         self.trial_poses(t, &mut q_new);
-        self.q = q_new;
+        std::mem::swap(&mut self.q, &mut q_new);
+        self.q_end = q_new;
     }
 
     /// The contacts found by the last [`BarrierContact::record`].
