@@ -360,8 +360,13 @@ fn press_wedge<S: Stepper>(
         run.middle_y = 0.5 * (a.y + b.y);
         run.tip_y = tip.y;
         for c in stepper.contacts() {
-            if let ContactKind::CornerEdge { .. } = c.kind {
-                run.max_force = run.max_force.max(c.force);
+            match c.kind {
+                ContactKind::CornerEdge { .. } => run.max_force = run.max_force.max(c.force),
+                // The corner alone holds the edge: no strip vertex reaches the wedge.
+                other => panic!(
+                    "at t = {}: a contact other than the corner's: {other:?}",
+                    state.t
+                ),
             }
         }
     }
