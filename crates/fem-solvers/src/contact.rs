@@ -733,13 +733,15 @@ pub(crate) struct ContactWorkspace {
 impl ContactWorkspace {
     /// Rebuild the broad phase at positions `x` and poses `bodies`: the grid over the boundary
     /// edges whose boxes come within `reach + slack` of an obstacle's box, with `slack` =
-    /// `reach` (room for the motion of a projection pass before the next rebuild).
+    /// `slack_reaches` times `reach` (room for the motion of a projection pass before the next
+    /// rebuild; penalty needs none).
     fn build(
         &mut self,
         edges: &[[u32; 2]],
         x: &[Vec2],
         obstacles: &[Obstacle],
         bodies: &[BodyState],
+        slack_reaches: Real,
     ) {
         let mut zone = Aabb::empty();
         for (obs, body) in obstacles.iter().zip(bodies) {
@@ -755,7 +757,7 @@ impl ContactWorkspace {
             self.edge_boxes.push(Aabb::of(&[pa, pb]));
         }
         self.reach = CORNER_DEPTH_FRACTION * longest2.sqrt();
-        self.slack = self.reach;
+        self.slack = slack_reaches * self.reach;
         let zone = zone.inflated(self.reach + self.slack);
         self.near.clear();
         self.near_boxes.clear();
@@ -920,7 +922,7 @@ pub(crate) fn accumulate_penalty_forces(
     if obstacles.is_empty() || edges.is_empty() {
         return contacts;
     }
-    ws.build(edges, x, obstacles, bodies);
+    ws.build(edges, x, obstacles, bodies, 0.0);
     for (o, (obs, body)) in obstacles.iter().zip(bodies).enumerate() {
         let frame = Frame::of(body);
         let reach = ws.reach;
@@ -1101,7 +1103,7 @@ fn project_corners(
     ws: &mut ContactWorkspace,
 ) -> usize {
     let mut contacts = 0;
-    ws.build(edges, x, obstacles, bodies);
+    ws.build(edges, x, obstacles, bodies, 1.0);
     let mut drift: Real = 0.0;
     for o in 0..obstacles.len() {
         let obs = &obstacles[o];
@@ -1111,7 +1113,7 @@ fn project_corners(
         let mut gathered: Option<Real> = None;
         for (corner, q) in obs.local.iter().enumerate() {
             if drift > ws.slack {
-                ws.build(edges, x, obstacles, bodies);
+                ws.build(edges, x, obstacles, bodies, 1.0);
                 drift = 0.0;
                 gathered = None;
             }
@@ -1318,7 +1320,7 @@ mod tests {
         o: &Obstacle,
     ) -> Option<EdgeHit> {
         let bodies = [BodyState::initial(o)];
-        ws.build(edges, x, std::slice::from_ref(o), &bodies);
+        ws.build(edges, x, std::slice::from_ref(o), &bodies, 0.0);
         let frame = Frame::of(&bodies[0]);
         let reach = ws.reach;
         ws.query(&o.world_box(&frame), reach);
