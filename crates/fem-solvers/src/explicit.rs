@@ -8,7 +8,8 @@
 //! - **forward Euler** (Algorithm I as printed, line 9): `x' = x + dt v`, `v' = (v + dt a) decay`.
 //!
 //! Kinematic vertices follow their schedule; dynamic rigid bodies are advanced by the same
-//! scheme under gravity and the penalty reactions ([`crate::contact`]).
+//! scheme under gravity and the penalty reactions ([`crate::contact`]: vertices in obstacles
+//! and obstacle corners in soft boundary edges, recorded in [`Stepper::contacts`]).
 //!
 //! Blow-up detection: the new positions and velocities are written into the stepper's own
 //! buffers and only swapped into the state when every value is finite; otherwise the step
@@ -24,7 +25,9 @@ use fem_core::par::prelude::*;
 use fem_core::simd::Isa;
 
 use crate::commit::{Kinematic, StepEnd};
-use crate::contact::{ObstacleMotion, Wrench, accumulate_penalty_forces};
+use crate::contact::{
+    Contact, ContactWorkspace, ObstacleMotion, Wrench, accumulate_penalty_forces,
+};
 use crate::error::{SolverError, check_non_negative, check_positive};
 use crate::kernel::{self, VERTEX_CHUNK};
 use crate::model::{Model, TimeStepCheck};
@@ -99,6 +102,7 @@ pub struct ExplicitStepper {
     v_new: Vec<Vec2>,
     wrenches: Vec<Wrench>,
     bodies_new: Vec<crate::contact::BodyState>,
+    contact: ContactWorkspace,
 }
 
 impl ExplicitStepper {
@@ -118,6 +122,7 @@ impl ExplicitStepper {
             v_new: vec![Vec2::zeros(); n],
             wrenches: vec![Wrench::default(); model.obstacles().len()],
             bodies_new: Vec::new(),
+            contact: ContactWorkspace::default(),
         })
     }
 
@@ -182,13 +187,16 @@ impl Stepper for ExplicitStepper {
                 model.obstacles(),
                 model.contact_params(),
                 model.masses(),
+                model.boundary_edges(),
                 &state.x,
                 &state.v,
                 &state.bodies,
                 &mut self.f,
                 &mut self.wrenches,
+                &mut self.contact,
             )
         } else {
+            self.contact.records.clear();
             0
         };
 
@@ -248,6 +256,11 @@ impl Stepper for ExplicitStepper {
         }
         .commit(model, state, || Ok(()))?;
         Ok(StepReport::explicit(inv.min_det_f, inv.inverted, contacts))
+    }
+
+    /// The penalty contacts of the last step, evaluated at its start (where the forces are).
+    fn contacts(&self) -> &[Contact] {
+        &self.contact.records
     }
 }
 

@@ -192,9 +192,11 @@ pub trait Stepper {
         state: &mut State,
     ) -> Result<StepReport, SolverError>;
 
-    /// The contacts of the last step, at its end configuration: where, the normal, the gap
-    /// (negative: penetration) and the normal force, in a fixed order. Empty for a stepper
-    /// without contact and for a model without a ground or obstacles.
+    /// The contacts of the last step, where the stepper last evaluated them (penalty: the
+    /// start of the step, where its forces are; projection: the sweeps of the last substep):
+    /// where, the normal, the gap (negative: penetration) and the normal force, in a fixed
+    /// order (see [`contact`]). Empty for a stepper without contact and for a model without a
+    /// ground or obstacles.
     fn contacts(&self) -> &[Contact] {
         &[]
     }

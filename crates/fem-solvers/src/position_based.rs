@@ -70,7 +70,7 @@ use fem_core::par::prelude::*;
 
 use crate::colour::Colouring;
 use crate::commit::{Kinematic, StepEnd};
-use crate::contact::{BodyState, ObstacleMotion, project_contacts};
+use crate::contact::{BodyState, Contact, ContactWorkspace, ObstacleMotion, project_contacts};
 use crate::error::{
     SolverError, check_count, check_non_negative, check_positive, check_relaxation,
 };
@@ -480,6 +480,8 @@ struct Engine {
     bodies_pred: Vec<BodyState>,
     /// The multipliers of the grab's springs (one vector per spring), zeroed every substep.
     grab_lambda: Vec<Vec2>,
+    /// Contact scratch and the last substep's contact records.
+    contact: ContactWorkspace,
 }
 
 /// For each colour, the corners of its triangles sorted by vertex, so a colour's corrections
@@ -612,6 +614,7 @@ impl Engine {
             ranges,
             bodies_pred: Vec::new(),
             grab_lambda: Vec::new(),
+            contact: ContactWorkspace::default(),
         }
     }
 
@@ -698,6 +701,7 @@ impl Engine {
         let springs = model.springs();
         self.grab_lambda.clear();
         self.grab_lambda.resize(springs.len(), Vec2::zeros());
+        self.contact.start_substep();
         for k in 0..self.iterations {
             if self.reset_lambda_each_sweep && k > 0 {
                 self.lambda.fill(0.0);
@@ -717,13 +721,16 @@ impl Engine {
                     model.obstacles(),
                     model.contact_params().friction,
                     w,
+                    model.boundary_edges(),
                     &state.x,
                     &mut self.x_pred,
                     &state.bodies,
                     &mut self.bodies_pred,
+                    &mut self.contact,
                 );
             }
         }
+        self.contact.finish_substep(h);
 
         // Velocities (lines 12-13).
         let decay = exp(-self.damping * h);
@@ -968,6 +975,12 @@ macro_rules! position_based_stepper {
                 state: &mut State,
             ) -> Result<StepReport, SolverError> {
                 self.engine.step(model, state)
+            }
+
+            /// The projection contacts of the last substep: every pair a sweep corrected, with
+            /// its multipliers summed over the sweeps as a force (see [`crate::contact`]).
+            fn contacts(&self) -> &[Contact] {
+                &self.engine.contact.records
             }
         }
     };

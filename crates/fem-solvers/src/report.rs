@@ -18,7 +18,8 @@ pub struct StepReport {
     /// iteration, in the constraint's units; implicit: the Newton residual (gradient norm over
     /// the free degrees of freedom, N).
     pub residual: Real,
-    /// Vertex-obstacle contact pairs detected (in the last pass).
+    /// Contact pairs detected (in the last pass): vertices in the ground or an obstacle and
+    /// obstacle corners in soft boundary edges ([`crate::Stepper::contacts`] lists them).
     pub contacts: usize,
 }
 

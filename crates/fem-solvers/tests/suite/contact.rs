@@ -1,14 +1,15 @@
-//! Contact: a soft block dropped on the ground comes to rest on it, and a dynamic rigid slab
-//! dropped on a soft strip comes to rest on the strip (two-way coupling), with penalty contact
-//! (explicit) and projection (XPBD).
+//! Contact: a soft block dropped on the ground comes to rest on it, a dynamic rigid slab
+//! dropped on a soft strip comes to rest on the strip (two-way coupling), and a sharp wedge's
+//! corner pressed into a coarse soft edge pushes the edge instead of passing through it, with
+//! penalty contact (explicit) and projection (PBD, XPBD).
 
 use crate::common::lame;
 use fem_core::energy::{Energy, NeoHookean};
 use fem_core::math::{Real, Vec2};
 use fem_solvers::testing::{RectangleParams, rectangle};
 use fem_solvers::{
-    ContactParams, ExplicitParams, ExplicitStepper, Ground, Model, ObstacleMotion, Region, State,
-    Stepper, XpbdParams, XpbdStepper,
+    ContactKind, ContactParams, ExplicitParams, ExplicitStepper, Ground, Model, ObstacleMotion,
+    PbdParams, PbdStepper, Region, State, Stepper, XpbdParams, XpbdStepper,
 };
 
 /// A 1 m x 1 m, 1 kg Neo-Hookean block (E = 10 kPa, 8 x 8 cells) 0.2 m above the ground y = 0.
@@ -279,4 +280,199 @@ fn overlaps_at_the_start_and_self_crossing_obstacles_are_refused() {
         "{e}"
     );
     assert_eq!(m.obstacles().len(), 1);
+}
+
+/// The wedge regression's scene: a 4 m x 0.5 m strip (E = 1 kPa, 1 kg, no gravity) pinned
+/// along its bottom, with only 4 x 2 cells, so its top edges are 1 m long; a kinematic wedge
+/// (tip down, 0.2 m wide at the top, so no strip vertex ever lies inside it) 2 cm above the
+/// middle of the top edge from x = 1 m to x = 2 m, moving down at 0.2 m/s during [0, 0.5] s:
+/// 10 cm of travel, so the tip would end 8 cm into the strip. Returns the model, the wedge's
+/// index and the edge's vertices (left, right).
+fn strip_and_wedge() -> (Model<NeoHookean>, usize, [usize; 2]) {
+    let mesh = rectangle(&RectangleParams::new(4.0, 0.5, 4, 2)).unwrap();
+    let mut m = Model::with_total_mass(mesh, NeoHookean::new(lame(1e3)).unwrap(), 1.0).unwrap();
+    m.pin(&Region::in_box(Vec2::new(0.0, 0.0), Vec2::new(4.0, 0.0)))
+        .unwrap();
+    m.set_contact_params(ContactParams {
+        stiffness: WEDGE_STIFFNESS,
+        damping_ratio: 1.0,
+        ..Default::default()
+    })
+    .unwrap();
+    let wedge = m
+        .add_obstacle(
+            &[
+                Vec2::new(1.5, 0.52),
+                Vec2::new(1.6, 0.82),
+                Vec2::new(1.4, 0.82),
+            ],
+            ObstacleMotion::Kinematic {
+                velocity: Vec2::new(0.0, -WEDGE_SPEED),
+                angular_velocity: 0.0,
+                start: 0.0,
+                end: WEDGE_TIME,
+            },
+        )
+        .unwrap();
+    let node = |i| fem_solvers::testing::node_index(i, 2, 4);
+    (m, wedge, [node(1), node(2)])
+}
+
+/// The wedge regression's penalty stiffness, 1/s^2.
+const WEDGE_STIFFNESS: Real = 1e7;
+/// The wedge's speed (m/s) and how long it moves (s).
+const WEDGE_SPEED: Real = 0.2;
+const WEDGE_TIME: Real = 0.5;
+/// The gap between the tip and the edge at t = 0, m.
+const WEDGE_GAP: Real = 0.02;
+
+/// What the wedge run measured: the deepest the tip went below the edge's line (m, positive
+/// below), the height of the edge's middle at the end (m), the tip's height at the end (m),
+/// and the largest corner-edge normal force the stepper reported (N).
+struct WedgeRun {
+    deepest: Real,
+    middle_y: Real,
+    tip_y: Real,
+    max_force: Real,
+}
+
+/// Run the wedge scene to `t = 0.6 s` (0.1 s after the wedge stops) with `stepper`, checking
+/// after every step how far the tip lies below the line through the edge's two vertices.
+fn press_wedge<S: Stepper>(
+    model: &Model<NeoHookean>,
+    mut stepper: S,
+    wedge: usize,
+    edge: [usize; 2],
+) -> WedgeRun {
+    let mut state = State::at_rest(model);
+    let mut run = WedgeRun {
+        deepest: Real::NEG_INFINITY,
+        middle_y: 0.0,
+        tip_y: 0.0,
+        max_force: 0.0,
+    };
+    while state.t < WEDGE_TIME + 0.1 {
+        stepper.step(model, &mut state).unwrap();
+        let tip = model.obstacles()[wedge].world_polygon(&state.bodies[wedge])[0];
+        let (a, b) = (state.x[edge[0]], state.x[edge[1]]);
+        let line_y = a.y + (tip.x - a.x) / (b.x - a.x) * (b.y - a.y);
+        run.deepest = run.deepest.max(line_y - tip.y);
+        run.middle_y = 0.5 * (a.y + b.y);
+        run.tip_y = tip.y;
+        for c in stepper.contacts() {
+            match c.kind {
+                ContactKind::CornerEdge { .. } => run.max_force = run.max_force.max(c.force),
+                // The corner alone holds the edge: no strip vertex reaches the wedge.
+                other => panic!(
+                    "at t = {}: a contact other than the corner's: {other:?}",
+                    state.t
+                ),
+            }
+        }
+    }
+    run
+}
+
+/// The edge's middle should have gone down by the wedge's travel less the initial gap (8 cm):
+/// it ends where the tip is, up to the penetration, and the tip's final height is exact.
+fn check_edge_pushed_down(run: &WedgeRun, tolerance: Real, what: &str) {
+    let expected_tip = 0.52 - WEDGE_SPEED * WEDGE_TIME;
+    assert!(
+        (run.tip_y - expected_tip).abs() < 1e-9,
+        "{what}: the wedge's tip ended at {}",
+        run.tip_y
+    );
+    let expected_middle = 0.5 - (WEDGE_SPEED * WEDGE_TIME - WEDGE_GAP);
+    assert!(
+        (run.middle_y - expected_middle).abs() < tolerance,
+        "{what}: the edge's middle ended at {} m, expected {expected_middle} m (within {tolerance} m)",
+        run.middle_y
+    );
+}
+
+#[test]
+fn wedge_corner_no_longer_passes_through_a_coarse_soft_edge_explicit() {
+    let (model, wedge, edge) = strip_and_wedge();
+    let params = ExplicitParams {
+        dt: 1e-4,
+        damping: 5.0,
+        ..Default::default()
+    };
+    assert!(model.check_time_step(params.dt).warning().is_none());
+    let run = press_wedge(
+        &model,
+        ExplicitStepper::new(&model, params).unwrap(),
+        wedge,
+        edge,
+    );
+    // Penalty contact holds the tip where `m_eff k d` balances the strip's reaction F (plus the
+    // damping term while the wedge moves): d = F / (m_eff k). The corner sits at the edge's
+    // middle, whose two vertices weigh 1/16 kg each (three of the 16 triangles of 1/8 m^2 at
+    // 0.5 kg/m^2, a third of each), so m_eff = 1/16 kg. The reaction at 8 cm of indentation is
+    // about 500 N (the reported force; XPBD reports the same), so d is about
+    // 500 / (1/16 * 1e7) = 0.8 mm. Tolerances: 1.25 times the depth the law gives at the largest
+    // reported force, and 2 mm.
+    let m_eff = 1.0 / 16.0;
+    let penalty_depth = run.max_force / (m_eff * WEDGE_STIFFNESS);
+    assert!(
+        run.max_force > 0.0 && run.deepest < 1.25 * penalty_depth,
+        "explicit: the tip went {} m below the edge (the penalty law allows about {penalty_depth} m at the largest reported force {} N)",
+        run.deepest,
+        run.max_force
+    );
+    assert!(
+        run.deepest < 2e-3,
+        "explicit: the tip went {} m below the edge",
+        run.deepest
+    );
+    check_edge_pushed_down(&run, 2e-3, "explicit");
+}
+
+#[test]
+fn wedge_corner_no_longer_passes_through_a_coarse_soft_edge_pbd() {
+    // Projection leaves the corner on the edge after every pass: round-off (1e-9 m).
+    let (model, wedge, edge) = strip_and_wedge();
+    let params = PbdParams {
+        dt: 1e-3,
+        iterations: 10,
+        damping: 5.0,
+        ..Default::default()
+    };
+    let run = press_wedge(
+        &model,
+        PbdStepper::new(&model, params).unwrap(),
+        wedge,
+        edge,
+    );
+    assert!(
+        run.deepest < 1e-9,
+        "pbd: the tip went {} m below the edge",
+        run.deepest
+    );
+    assert!(run.max_force > 0.0, "pbd: no corner-edge force reported");
+    check_edge_pushed_down(&run, 1e-3, "pbd");
+}
+
+#[test]
+fn wedge_corner_no_longer_passes_through_a_coarse_soft_edge_xpbd() {
+    let (model, wedge, edge) = strip_and_wedge();
+    let params = XpbdParams {
+        dt: 1e-3,
+        iterations: 10,
+        damping: 5.0,
+        ..Default::default()
+    };
+    let run = press_wedge(
+        &model,
+        XpbdStepper::new(&model, params).unwrap(),
+        wedge,
+        edge,
+    );
+    assert!(
+        run.deepest < 1e-9,
+        "xpbd: the tip went {} m below the edge",
+        run.deepest
+    );
+    assert!(run.max_force > 0.0, "xpbd: no corner-edge force reported");
+    check_edge_pushed_down(&run, 1e-3, "xpbd");
 }
