@@ -690,7 +690,10 @@ impl NewtonSolver {
                     r < residual
                 };
                 if armijo || lowers_residual {
-                    phi = trial_phi;
+                    // A trial taken for its residual within the potential's round-off keeps
+                    // the lower of the two potentials as the reference of the next Armijo
+                    // test, so two such states can never alternate.
+                    phi = if armijo { trial_phi } else { phi.min(trial_phi) };
                     magnitude = trial_magnitude;
                     accepted = true;
                     break;

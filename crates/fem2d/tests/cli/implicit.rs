@@ -287,8 +287,8 @@ fn contact_and_bad_newton_settings_are_one_line_errors() {
     let dir = scratch("newton-errors");
     for (args, needles) in [
         (
-            vec!["case-d", "--solver", "implicit"],
-            vec!["built-in case-d", "solver.kind = implicit", "contact"],
+            vec!["case-d", "--solver", "pd"],
+            vec!["built-in case-d", "solver.kind = pd", "contact"],
         ),
         (
             vec!["case-d", "--solver", "static"],
