@@ -139,3 +139,21 @@ impl fem_scene::run::FrameSink for Frames {
         Ok(())
     }
 }
+
+/// Regression: at the scene's own step (0.1 ms) implicit Euler once stalled at step 2517, its
+/// Newton iterates alternating between two states: a trial accepted for its lower residual
+/// within the potential's round-off window became the reference of the next Armijo test, which
+/// the previous state then passed. Past that step now, in a few Newton iterations per step.
+#[test]
+fn case_d_under_implicit_euler_at_a_tenth_of_a_millisecond_does_not_cycle() {
+    let scene = case_d(&[
+        "solver.kind=implicit",
+        "solver.steps=2600",
+        "output.frame_every=1300",
+    ]);
+    let r = run(&scene, &mut RunEnv::default()).unwrap();
+    assert!(!r.summary.blew_up, "{:?}", r.summary.blow_up_message);
+    let per_step = r.summary.newton_iterations as f64 / 2600.0;
+    assert!(per_step < 15.0, "{per_step} Newton iterations per step");
+    assert!(r.summary.contact_min_gap.unwrap() > 0.0);
+}

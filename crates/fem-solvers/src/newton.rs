@@ -693,7 +693,11 @@ impl NewtonSolver {
                     // A trial taken for its residual within the potential's round-off keeps
                     // the lower of the two potentials as the reference of the next Armijo
                     // test, so two such states can never alternate.
-                    phi = if armijo { trial_phi } else { phi.min(trial_phi) };
+                    phi = if armijo {
+                        trial_phi
+                    } else {
+                        phi.min(trial_phi)
+                    };
                     magnitude = trial_magnitude;
                     accepted = true;
                     break;

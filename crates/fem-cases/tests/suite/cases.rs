@@ -209,7 +209,11 @@ fn peak_within(r: &RunResult, lo: f64, hi: f64) -> f64 {
         .iter()
         .zip(&r.triangles)
         .filter(|(v, tri)| {
-            let x = tri.iter().map(|&i| r.final_positions[i as usize][0]).sum::<f64>() / 3.0;
+            let x = tri
+                .iter()
+                .map(|&i| r.final_positions[i as usize][0])
+                .sum::<f64>()
+                / 3.0;
             v.is_finite() && x >= lo && x <= hi
         })
         .map(|(v, _)| *v)
