@@ -14,8 +14,8 @@
 //! stays bounded, and without external load the total energy never increases.
 //!
 //! Kinematic vertices follow their schedule exactly as in the explicit stepper. With a ground
-//! or obstacles, barrier contact joins the potential ([`crate::barrier_contact`], IPC-style):
-//! dynamic and kinematic obstacles are unknowns of the same Newton system, every line search
+//! or obstacles, barrier contact joins the potential (IPC-style, built on [`crate::ipc`]; see
+//! `docs/solvers.md`, Contact): dynamic and kinematic obstacles are unknowns of the same Newton system, every line search
 //! starts at the largest step the CCD allows, and the starting guess is the prediction only as
 //! far as it stays free of contact. The body must start apart from the ground and the
 //! obstacles (a step that starts touching is an error naming the pair). After each step

@@ -58,9 +58,9 @@
 //! forbidding inversion is dropped (that sweep's plain result is kept) and the sequence
 //! restarts.
 //!
-//! **Contact** (a ground or obstacles) is implicit Euler's barrier term
-//! ([`crate::barrier_contact`]) in each vertex's local potential: its pairs' barrier and lagged
-//! friction join the vertex's gradient and (projected) block, every vertex move is limited by
+//! **Contact** (a ground or obstacles) is implicit Euler's barrier term (IPC-style, built on
+//! [`crate::ipc`]) in each vertex's local potential: its pairs' barrier and lagged friction
+//! join the vertex's gradient and (projected) block, every vertex move is limited by
 //! the CCD of its pairs (the others held) and to `2 d_hat` per sweep (the broad phase before
 //! each sweep reaches `3 d_hat`, so no pair it missed can come close), and a vertex with pairs
 //! always takes the line search. Dynamic and kinematic obstacles take one Newton step on

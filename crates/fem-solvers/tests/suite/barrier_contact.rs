@@ -346,3 +346,59 @@ fn vbd_block_and_slab_at_90_hz_never_penetrate_and_rest_on_their_weight() {
         "force on the strip {total:?} N, slab weight 4.9 N"
     );
 }
+
+#[test]
+fn wedge_corner_no_longer_passes_through_a_coarse_soft_edge_static() {
+    // Quasi-static: the wedge's whole motion (5 cm down over its 1 s window) in 10 load
+    // increments; each equilibrium has the tip on the edge, never through it.
+    let mesh = rectangle(&RectangleParams::new(1.0, 0.2, 2, 1)).unwrap();
+    let mut model = Model::with_total_mass(mesh, NeoHookean::new(lame(1e4)).unwrap(), 1.0).unwrap();
+    model
+        .pin(&Region::in_box(Vec2::new(0.0, 0.0), Vec2::new(1.0, 0.0)))
+        .unwrap();
+    model
+        .add_obstacle(
+            &[
+                Vec2::new(0.25, 0.21),
+                Vec2::new(0.27, 0.31),
+                Vec2::new(0.23, 0.31),
+            ],
+            ObstacleMotion::Kinematic {
+                velocity: Vec2::new(0.0, -0.05),
+                angular_velocity: 0.0,
+                start: 0.0,
+                end: 1.0,
+            },
+        )
+        .unwrap();
+    let mut s = StaticStepper::new(
+        &model,
+        StaticParams {
+            load_steps: 10,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let mut state = State::at_rest(&model);
+    while state.t < 1.0 {
+        s.step(&model, &mut state)
+            .unwrap_or_else(|e| panic!("load factor {}: {e}", state.t));
+        check_apart(&model, &state);
+    }
+    let tip = model.obstacles()[0].world_polygon(&state.bodies[0])[0];
+    let find = |p: Vec2| {
+        (0..state.x.len())
+            .find(|&v| model.mesh().vertices()[v] == p)
+            .unwrap()
+    };
+    let (a, b) = (find(Vec2::new(0.0, 0.2)), find(Vec2::new(0.5, 0.2)));
+    let under = edge_height(&state, a, b, tip.x);
+    assert!(
+        tip.y > under && tip.y - under < 1e-3,
+        "tip at {tip:?}, edge under it at {under}"
+    );
+    assert!(
+        (under - 0.16).abs() < 2e-3,
+        "edge pushed to {under} (expected about 0.16)"
+    );
+}

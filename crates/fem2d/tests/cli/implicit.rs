@@ -291,8 +291,8 @@ fn contact_and_bad_newton_settings_are_one_line_errors() {
             vec!["built-in case-d", "solver.kind = pd", "contact"],
         ),
         (
-            vec!["case-d", "--solver", "static"],
-            vec!["built-in case-d", "solver.kind = static", "contact"],
+            vec!["case-d", "--solver", "quasi-newton"],
+            vec!["built-in case-d", "solver.kind = quasi-newton", "contact"],
         ),
         (
             vec![
