@@ -27,6 +27,9 @@ const CASES: &[(&str, u64)] = &[("case-a", 500), ("case-d", 200)];
 /// Steps of case A under each solver of the registry (co-rotational, which every solver runs).
 const SOLVER_STEPS: u64 = 40;
 
+/// Steps of case D at dt = 1/90 s under each solver that handles contact.
+const CONTACT_STEPS: u64 = 60;
+
 /// Runs the task.
 pub fn run(args: &[&str]) -> Result<(), String> {
     let mut serve = false;
@@ -184,6 +187,17 @@ fn check_against_native(site: &Path) -> Result<(), String> {
             SOLVER_STEPS.to_string(),
             "energy=\"corotational\"".into(),
             format!("solver.kind=\"{solver}\""),
+        ]);
+    }
+    // Case D at a headset's frame step under every solver that handles contact (barrier
+    // contact in implicit, static and VBD), so contact is bit-identical in WebAssembly too.
+    let contact = native(&["--list-contact-solvers".to_owned()])?;
+    for solver in contact.split_whitespace() {
+        checks.push(vec![
+            "case-d".into(),
+            CONTACT_STEPS.to_string(),
+            format!("solver.kind=\"{solver}\""),
+            format!("solver.dt={}", 1.0 / 90.0),
         ]);
     }
     for args in &checks {

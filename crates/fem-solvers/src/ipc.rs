@@ -12,7 +12,7 @@
 //! Degrees of freedom of a pair are ordered `[p, a, b]` (the point, then the segment's two
 //! ends), six in all.
 
-use fem_core::math::{Real, Vec2};
+use fem_core::math::{Real, Vec2, ln};
 use nalgebra::{Matrix2, SMatrix, SVector};
 
 /// Gradient with respect to `[p, a, b]`.
@@ -24,6 +24,8 @@ pub type Hess6 = SMatrix<Real, 6, 6>;
 /// distance): `b(s) = -(s - s_hat)^2 ln(s / s_hat)` for `0 < s < s_hat`, 0 beyond. It is
 /// twice continuously differentiable at `s_hat` (value, slope and curvature vanish there) and
 /// grows without bound as `s -> 0`. Returns `(b, db/ds, d2b/ds2)`; `s <= 0` gives infinities.
+/// The logarithm is fem-core's ([`fem_core::math::ln`]), so the barrier has the same bits
+/// natively and in WebAssembly.
 pub fn barrier(s: Real, s_hat: Real) -> (Real, Real, Real) {
     if s >= s_hat {
         return (0.0, 0.0, 0.0);
@@ -31,7 +33,7 @@ pub fn barrier(s: Real, s_hat: Real) -> (Real, Real, Real) {
     if s <= 0.0 {
         return (Real::INFINITY, Real::NEG_INFINITY, Real::INFINITY);
     }
-    let (d, l) = (s - s_hat, (s / s_hat).ln());
+    let (d, l) = (s - s_hat, ln(s / s_hat));
     let b = -d * d * l;
     let db = -2.0 * d * l - d * d / s;
     let d2b = -2.0 * l - 4.0 * d / s + d * d / (s * s);

@@ -4,13 +4,17 @@
 //!
 //! `cargo run --release -p fem-web --example state_hash -- case-a 500 [KEY=VALUE ...]`
 //! (each `KEY=VALUE` is set before stepping, as the page's controls do);
-//! `state_hash --list-solvers` prints the registry's solver names.
+//! `state_hash --list-solvers` prints the registry's solver names, `--list-contact-solvers`
+//! those that handle contact.
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    if args.first().map(String::as_str) == Some("--list-solvers") {
+    let list = args.first().map(String::as_str);
+    if list == Some("--list-solvers") || list == Some("--list-contact-solvers") {
+        let contact_only = list == Some("--list-contact-solvers");
         let names: Vec<&str> = fem_solvers::SolverKind::ALL
             .iter()
+            .filter(|k| !contact_only || k.capabilities().contact)
             .map(|k| k.name())
             .collect();
         println!("{}", names.join(" "));
