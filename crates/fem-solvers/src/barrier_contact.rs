@@ -838,20 +838,54 @@ impl BarrierContact {
         min
     }
 
-    /// The smallest signed distance over the candidate pairs at `x` and the current poses
-    /// (after [`BarrierContact::begin`] or a `prepare` without motion), and the pair's
-    /// description; infinite when no pair is near.
-    pub(crate) fn min_start_distance(&self, x: &[Vec2]) -> (Real, String) {
-        let mut best = (Real::INFINITY, String::new());
+    /// Whether the body at `x` and the obstacles at their poses are apart, as barrier contact
+    /// needs at the start of a step: `None`, or what touches or overlaps (a candidate pair at
+    /// distance <= 0 after [`BarrierContact::begin`] or a `prepare` without motion, a boundary
+    /// vertex inside an obstacle, an obstacle corner inside the body) in words, for an error.
+    /// An overlap happens when something outside the solver moved an obstacle (a hand).
+    pub(crate) fn start_overlap(&self, x: &[Vec2]) -> Option<String> {
+        let mut best = (0.0, None);
         for pair in &self.pairs {
             let [p, a, b] = self.points(pair, x, &self.q);
             let (s, _, _) = self.geometry(pair, p, a, b);
             let d = s.signum() * s.abs().sqrt();
-            if d < best.0 {
-                best = (d, describe(&pair.kind));
+            if d <= best.0 {
+                best = (d, Some(pair.kind));
             }
         }
-        best
+        if let (d, Some(kind)) = best {
+            return Some(format!("{} at distance {d:e} m", describe(&kind)));
+        }
+        let inside = |poly: &mut dyn Iterator<Item = (Vec2, Vec2)>, p: Vec2| {
+            let mut c = false;
+            for (a, b) in poly {
+                if (a.y > p.y) != (b.y > p.y) && p.x < a.x + (p.y - a.y) / (b.y - a.y) * (b.x - a.x)
+                {
+                    c = !c;
+                }
+            }
+            c
+        };
+        for (o, poly) in self.polygons.iter().enumerate() {
+            let n = poly.len();
+            let corner = |k: usize| self.corner(&self.q, o as u32, (k % n) as u32);
+            for &v in &self.boundary_vertices {
+                let mut edges = (0..n).map(|k| (corner(k), corner(k + 1)));
+                if inside(&mut edges, x[v as usize]) {
+                    return Some(format!("vertex {v} inside obstacles[{o}]"));
+                }
+            }
+            for k in 0..n {
+                let mut edges = self
+                    .boundary
+                    .iter()
+                    .map(|&[a, b]| (x[a as usize], x[b as usize]));
+                if inside(&mut edges, corner(k)) {
+                    return Some(format!("obstacles[{o}] corner {k} inside the body"));
+                }
+            }
+        }
+        None
     }
 
     /// Collect candidate pairs up to `margin` (>= `d_hat`) apart instead of `d_hat`.
@@ -1365,8 +1399,25 @@ mod tests {
         let mut q = Vec::new();
         c.trial_poses(alpha, &mut q);
         c.q.clone_from(&q);
-        c.prepare(&x0, None);
-        let (d, _) = c.min_start_distance(&x0);
+        let d = c.record(&x0);
         assert!(d > 0.0 && d < 3e-4, "distance after the step {d:e}");
+        assert_eq!(c.start_overlap(&x0), None);
+    }
+
+    #[test]
+    fn an_obstacle_moved_into_the_body_from_outside_is_named_at_the_start() {
+        // A hand (outside the solver) puts the triangle's lower corner 1 cm into the strip:
+        // the unsigned pair distances are all positive, the overlap is still found.
+        let (model, bodies) = scene();
+        let x0 = model.mesh().vertices().to_vec();
+        let mut c = BarrierContact::new(&model, 1e-4);
+        c.begin(&x0, &bodies, &[[0.5, 0.3, 0.0]], 0.0, Vec2::zeros());
+        assert_eq!(c.start_overlap(&x0), None);
+        c.q[0][1] -= 0.0107;
+        c.prepare(&x0, None);
+        assert_eq!(
+            c.start_overlap(&x0).as_deref(),
+            Some("obstacles[0] corner 0 inside the body")
+        );
     }
 }

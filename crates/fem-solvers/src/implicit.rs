@@ -248,11 +248,10 @@ impl Stepper for ImplicitStepper {
                 1.0 / (h * h),
                 model.gravity(),
             );
-            let (d, at) = c.min_start_distance(&state.x);
-            if d <= 0.0 {
+            if let Some(at) = c.start_overlap(&state.x) {
                 return Err(SolverError::invalid(
                     "implicit.contact",
-                    format!("{at} at distance {d:e} m"),
+                    at,
                     "barrier contact needs every soft vertex and obstacle apart at the start of a step (start the body above the ground and clear of obstacles)",
                 ));
             }

@@ -392,11 +392,10 @@ impl Stepper for StaticStepper {
                     0.0,
                     model.gravity() * next,
                 );
-                let (d, at) = c.min_start_distance(&state.x);
-                if d <= 0.0 {
+                if let Some(at) = c.start_overlap(&state.x) {
                     return Err(SolverError::invalid(
                         "static.contact",
-                        format!("{at} at distance {d:e} m"),
+                        at,
                         "barrier contact needs every soft vertex and obstacle apart at the start of an increment (start the body above the ground and clear of obstacles)",
                     ));
                 }

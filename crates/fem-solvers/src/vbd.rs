@@ -914,11 +914,10 @@ pub(crate) fn start_contact<E: Energy>(
         1.0 / (h * h),
         model.gravity(),
     );
-    let (d, at) = c.min_start_distance(&state.x);
-    if d <= 0.0 {
+    if let Some(at) = c.start_overlap(&state.x) {
         return Err(SolverError::invalid(
-            "contact",
-            format!("{at} at distance {d:e} m"),
+            "vbd.contact",
+            at,
             "barrier contact needs every soft vertex and obstacle apart at the start of a step (start the body above the ground and clear of obstacles)",
         ));
     }
