@@ -2,6 +2,11 @@
 //! are static, kinematic (prescribed motion) or dynamic rigid bodies (mass, gravity, two-way
 //! coupling).
 //!
+//! This module holds the obstacles, the contact records and the penalty (explicit) and
+//! projection (PBD, XPBD) contact below. Implicit Euler, the static solver and VBD use barrier
+//! contact instead (IPC-style, never penetrating; built on [`crate::ipc`], see
+//! `docs/solvers.md`, Contact).
+//!
 //! Two kinds of penetration are detected, so neither side has to be finer than the other:
 //! - **vertex in obstacle**: a mesh vertex inside the ground half-space or inside a polygon is
 //!   pushed out along the shortest way to the obstacle's surface (the closest point on the
