@@ -1180,6 +1180,66 @@ impl BarrierContact {
     }
 }
 
+/// The obstacles' target poses of a (sub)step of length `h` from `state`: the inertial
+/// prediction `pose + h velocity` of a dynamic body, the schedule's pose at `t + h` of a
+/// kinematic one (so a lag behind it never accumulates), the pose of a static one.
+pub(crate) fn step_targets<E: Energy>(
+    model: &Model<E>,
+    state: &crate::State,
+    h: Real,
+    targets: &mut Vec<[Real; 3]>,
+) {
+    targets.clear();
+    for (obs, b) in model.obstacles().iter().zip(&state.bodies) {
+        let target = match obs.motion() {
+            ObstacleMotion::Dynamic { .. } => {
+                let p = b.position + b.velocity * h;
+                [p.x, p.y, b.angle + b.angular_velocity * h]
+            }
+            _ => obs
+                .scheduled_pose(state.t + h)
+                .unwrap_or([b.position.x, b.position.y, b.angle]),
+        };
+        targets.push(target);
+    }
+}
+
+/// The obstacles' new states at the end of a (sub)step of length `h` with barrier contact:
+/// poses from the solve, velocities from the motion (dynamic) or the schedule (kinematic).
+pub(crate) fn end_poses<E: Energy>(
+    c: &BarrierContact,
+    model: &Model<E>,
+    state: &crate::State,
+    h: Real,
+    bodies_new: &mut Vec<BodyState>,
+) {
+    bodies_new.clone_from(&state.bodies);
+    for (o, (obs, body)) in model
+        .obstacles()
+        .iter()
+        .zip(bodies_new.iter_mut())
+        .enumerate()
+    {
+        let q = c.q[o];
+        let old = &state.bodies[o];
+        match obs.motion() {
+            ObstacleMotion::Dynamic { .. } => {
+                body.velocity = (Vec2::new(q[0], q[1]) - old.position) / h;
+                body.angular_velocity = (q[2] - old.angle) / h;
+            }
+            ObstacleMotion::Kinematic { .. } => {
+                let mut scheduled = *old;
+                obs.advance_kinematic(&mut scheduled, state.t, h);
+                body.velocity = scheduled.velocity;
+                body.angular_velocity = scheduled.angular_velocity;
+            }
+            ObstacleMotion::Static => {}
+        }
+        body.position = Vec2::new(q[0], q[1]);
+        body.angle = q[2];
+    }
+}
+
 /// A pair in words, for error messages.
 fn describe(kind: &ContactKind) -> String {
     match *kind {

@@ -30,9 +30,9 @@
 use fem_core::energy::Energy;
 use fem_core::math::{Real, Vec2, exp};
 
-use crate::barrier_contact::BarrierContact;
+use crate::barrier_contact::{BarrierContact, end_poses, step_targets};
 use crate::commit::{Kinematic, StepEnd};
-use crate::contact::{BodyState, Contact, ObstacleMotion};
+use crate::contact::{BodyState, Contact};
 use crate::error::{SolverError, check_non_negative, check_positive};
 use crate::model::Model;
 use crate::newton::{NewtonParams, NewtonReport, NewtonSolver, Potential};
@@ -221,26 +221,7 @@ impl Stepper for ImplicitStepper {
             }
         };
         if let Some(c) = self.contact.as_mut() {
-            // The obstacles' targets: inertial predictions of dynamic bodies, the schedule's
-            // poses of kinematic ones.
-            self.bodies_new.clone_from(&state.bodies);
-            self.targets.clear();
-            for (obs, body) in model.obstacles().iter().zip(self.bodies_new.iter_mut()) {
-                match obs.motion() {
-                    ObstacleMotion::Kinematic { .. } => obs.advance_kinematic(body, t, h),
-                    ObstacleMotion::Dynamic { .. } => {
-                        body.position += body.velocity * h;
-                        body.angle += body.angular_velocity * h;
-                    }
-                    ObstacleMotion::Static => {}
-                }
-                // A kinematic obstacle aims at its schedule (so a lag never accumulates).
-                self.targets.push(obs.scheduled_pose(t + h).unwrap_or([
-                    body.position.x,
-                    body.position.y,
-                    body.angle,
-                ]));
-            }
+            step_targets(model, state, h, &mut self.targets);
             c.begin(
                 &state.x,
                 &state.bodies,
@@ -283,25 +264,7 @@ impl Stepper for ImplicitStepper {
         }
         let mut contacts = 0;
         if let Some(c) = self.contact.as_mut() {
-            for (o, (obs, body)) in model
-                .obstacles()
-                .iter()
-                .zip(self.bodies_new.iter_mut())
-                .enumerate()
-            {
-                let q = c.q[o];
-                let old = &state.bodies[o];
-                match obs.motion() {
-                    ObstacleMotion::Dynamic { .. } => {
-                        body.velocity = (Vec2::new(q[0], q[1]) - old.position) / h;
-                        body.angular_velocity = (q[2] - old.angle) / h;
-                    }
-                    // Kinematic bodies keep their schedule's velocity.
-                    ObstacleMotion::Kinematic { .. } | ObstacleMotion::Static => {}
-                }
-                body.position = Vec2::new(q[0], q[1]);
-                body.angle = q[2];
-            }
+            end_poses(c, model, state, h, &mut self.bodies_new);
             self.min_distance = c.record(&self.x_new);
             contacts = c.contacts().len();
         }

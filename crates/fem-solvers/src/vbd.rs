@@ -80,10 +80,10 @@ use fem_core::math::{Mat2, Real, Vec2, exp};
 use fem_core::mesh::VertexAdjacency;
 use fem_core::par::prelude::*;
 
-use crate::barrier_contact::BarrierContact;
+use crate::barrier_contact::{BarrierContact, end_poses, step_targets};
 use crate::colour::VertexColouring;
 use crate::commit::{Kinematic, StepEnd};
-use crate::contact::{BodyState, Contact, ObstacleMotion};
+use crate::contact::{BodyState, Contact};
 use crate::error::{SolverError, check_count, check_non_negative, check_positive, check_rho};
 use crate::grab::{Spring, spring_of};
 use crate::implicit::external_load;
@@ -834,7 +834,7 @@ impl Stepper for VbdStepper {
             prev_v.copy_from_slice(&state.v);
             let bodies = match self.contact.as_mut() {
                 Some(c) => {
-                    end_contact(c, model, state, h, &mut self.bodies_new);
+                    end_poses(c, model, state, h, &mut self.bodies_new);
                     self.min_distance = c.record(&self.x);
                     Some(&mut self.bodies_new)
                 }
@@ -889,24 +889,7 @@ pub(crate) fn start_contact<E: Energy>(
     x: &mut [Vec2],
     scratch: &mut [Vec2],
 ) -> Result<(), SolverError> {
-    let t = state.t;
-    targets.clear();
-    for (obs, b) in model.obstacles().iter().zip(&state.bodies) {
-        let mut body = *b;
-        match obs.motion() {
-            ObstacleMotion::Kinematic { .. } => obs.advance_kinematic(&mut body, t, h),
-            ObstacleMotion::Dynamic { .. } => {
-                body.position += body.velocity * h;
-                body.angle += body.angular_velocity * h;
-            }
-            ObstacleMotion::Static => {}
-        }
-        targets.push(obs.scheduled_pose(t + h).unwrap_or([
-            body.position.x,
-            body.position.y,
-            body.angle,
-        ]));
-    }
+    step_targets(model, state, h, targets);
     c.begin(
         &state.x,
         &state.bodies,
@@ -943,42 +926,6 @@ pub(crate) fn start_contact<E: Energy>(
     c.trial_poses(alpha, &mut q);
     c.q = q;
     Ok(())
-}
-
-/// The obstacles' new states at the end of a substep with barrier contact: poses from the
-/// solve, velocities from the motion (dynamic) or the schedule (kinematic).
-pub(crate) fn end_contact<E: Energy>(
-    c: &BarrierContact,
-    model: &Model<E>,
-    state: &State,
-    h: Real,
-    bodies_new: &mut Vec<BodyState>,
-) {
-    bodies_new.clone_from(&state.bodies);
-    for (o, (obs, body)) in model
-        .obstacles()
-        .iter()
-        .zip(bodies_new.iter_mut())
-        .enumerate()
-    {
-        let q = c.q[o];
-        let old = &state.bodies[o];
-        match obs.motion() {
-            ObstacleMotion::Dynamic { .. } => {
-                body.velocity = (Vec2::new(q[0], q[1]) - old.position) / h;
-                body.angular_velocity = (q[2] - old.angle) / h;
-            }
-            ObstacleMotion::Kinematic { .. } => {
-                let mut scheduled = *old;
-                obs.advance_kinematic(&mut scheduled, state.t, h);
-                body.velocity = scheduled.velocity;
-                body.angular_velocity = scheduled.angular_velocity;
-            }
-            ObstacleMotion::Static => {}
-        }
-        body.position = Vec2::new(q[0], q[1]);
-        body.angle = q[2];
-    }
 }
 
 impl Solver for VbdStepper {
