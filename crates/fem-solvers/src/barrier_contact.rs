@@ -46,8 +46,10 @@ use fem_core::math::{Mat6, Real, Vec2, sin_cos};
 use nalgebra::SymmetricEigen;
 
 use crate::broad_phase::{Aabb, Grid};
-use crate::contact::{BodyState, Contact, ContactKind, ContactParams, Ground, ObstacleMotion};
-use crate::ipc::{Grad6, Hess6, barrier, point_segment_distance2, point_segment_toi};
+use crate::contact::{
+    BodyState, Contact, ContactKind, ContactParams, Ground, ObstacleMotion, strictly_inside,
+};
+use crate::ipc::{Grad6, Hess6, barrier, point_segment_barrier, point_segment_toi};
 use crate::model::Model;
 use fem_core::energy::Energy;
 
@@ -79,7 +81,8 @@ struct Pair {
 /// The lagged friction data of a pair active at the start of the solve.
 #[derive(Clone, Copy, Debug)]
 struct Lag {
-    kind: ContactKind,
+    /// The pair (its points).
+    pair: Pair,
     /// Normal force magnitude at the start, N.
     lambda: Real,
     /// Unit tangent.
@@ -132,6 +135,8 @@ pub(crate) struct BarrierContact {
     ground: Option<Ground>,
     /// Each obstacle's local polygon.
     polygons: Vec<Vec<Vec2>>,
+    /// Each obstacle's radius about its centroid, m.
+    radii: Vec<Real>,
     /// The moving obstacles' unknowns, by obstacle (`None`: fixed).
     body_of: Vec<Option<usize>>,
     bodies: Vec<Body>,
@@ -164,7 +169,6 @@ pub(crate) struct BarrierContact {
     q_end: Vec<[Real; 3]>,
     corners: Vec<(Vec2, Vec2)>,
     fill: Vec<u32>,
-    lag_pairs: Vec<Pair>,
     still: Vec<Vec2>,
 }
 
@@ -259,6 +263,7 @@ impl BarrierContact {
                 .iter()
                 .map(|o| o.local_polygon().to_vec())
                 .collect(),
+            radii: model.obstacles().iter().map(|o| o.radius()).collect(),
             body_of,
             bodies,
             n_extra,
@@ -281,7 +286,6 @@ impl BarrierContact {
             q_end: Vec::new(),
             corners: Vec::new(),
             fill: Vec::new(),
-            lag_pairs: Vec::new(),
             still: Vec::new(),
         }
     }
@@ -314,11 +318,6 @@ impl BarrierContact {
             self.q[o] = [b.position.x, b.position.y, b.angle];
         }
         self.q_start.clone_from(&self.q);
-        let radius2: Vec<Real> = self
-            .polygons
-            .iter()
-            .map(|p| p.iter().map(|l| l.norm_squared()).fold(0.0, Real::max))
-            .collect();
         for body in &mut self.bodies {
             body.target = target_poses[body.obstacle];
             match body.role {
@@ -332,7 +331,8 @@ impl BarrierContact {
                 }
                 Role::Kinematic => {
                     let k = self.tether;
-                    body.weight = [k, k, k * radius2[body.obstacle].max(1e-12)];
+                    let r = self.radii[body.obstacle];
+                    body.weight = [k, k, k * (r * r).max(1e-12)];
                     body.load = Vec2::zeros();
                 }
             }
@@ -351,7 +351,7 @@ impl BarrierContact {
                 let (_, db, _) = barrier(s, self.d_hat * self.d_hat);
                 let lambda = -self.kappa * db * 2.0 * s.sqrt();
                 self.lags.push(Lag {
-                    kind: pair.kind,
+                    pair,
                     lambda,
                     tangent: Vec2::new(-normal.y, normal.x),
                     beta,
@@ -539,9 +539,7 @@ impl BarrierContact {
         }
         mag += e.abs();
         for lag in &self.lags {
-            let (u, _) = self.slip(lag, x, q);
-            let (f0, _, _) = mollifier(u.abs(), self.eps_x);
-            let d = self.mu * lag.lambda * f0;
+            let d = self.friction_energy(lag, self.points(&lag.pair, x, q));
             e += d;
             mag += d.abs();
         }
@@ -560,16 +558,10 @@ impl BarrierContact {
         (e, mag)
     }
 
-    /// The lag's pair (by kind) as points.
-    fn lag_pair(&self, lag: &Lag) -> Pair {
-        pair_of(lag.kind, self.ground.as_ref(), &self.polygons)
-    }
-
-    /// Tangential slip of a lagged pair over the solve and its gradient over `[p, a, b]`.
-    fn slip(&self, lag: &Lag, x: &[Vec2], q: &[[Real; 3]]) -> (Real, Grad6) {
-        let pair = self.lag_pair(lag);
-        let now = self.points(&pair, x, q);
-        let then = self.points(&pair, &self.x_start, &self.q_start);
+    /// Tangential slip of a lagged pair over the solve, its points now being `now`, and its
+    /// gradient over `[p, a, b]`.
+    fn slip(&self, lag: &Lag, now: [Vec2; 3]) -> (Real, Grad6) {
+        let then = self.points(&lag.pair, &self.x_start, &self.q_start);
         let w = [1.0, -(1.0 - lag.beta), -lag.beta];
         let mut rel = Vec2::zeros();
         let mut g = Grad6::zeros();
@@ -579,6 +571,50 @@ impl BarrierContact {
             g[2 * k + 1] = w[k] * lag.tangent.y;
         }
         (rel.dot(&lag.tangent), g)
+    }
+
+    /// A lagged pair's friction energy with its points at `now`.
+    fn friction_energy(&self, lag: &Lag, now: [Vec2; 3]) -> Real {
+        let (u, _) = self.slip(lag, now);
+        self.mu * lag.lambda * mollifier(u.abs(), self.eps_x).0
+    }
+
+    /// A lagged pair's friction gradient and Hessian over `[p, a, b]` at `(x, q)`.
+    fn friction_derivatives(&self, lag: &Lag, x: &[Vec2], q: &[[Real; 3]]) -> (Grad6, Hess6) {
+        let (u, du) = self.slip(lag, self.points(&lag.pair, x, q));
+        let (_, f1, f2) = mollifier(u.abs(), self.eps_x);
+        let scale = self.mu * lag.lambda;
+        (
+            du * (scale * f1 * u.signum()),
+            du * du.transpose() * (scale * f2),
+        )
+    }
+
+    /// A candidate pair's barrier gradient and Hessian (not projected) over `[p, a, b]` at the
+    /// points `[p, a, b]`, or `None` beyond the activation distance (or touching).
+    fn barrier_derivatives(&self, pair: &Pair, [p, a, b]: [Vec2; 3]) -> Option<(Grad6, Hess6)> {
+        let s_hat = self.d_hat * self.d_hat;
+        if !pair.ground {
+            let (e, g, h) = point_segment_barrier(p, a, b, self.d_hat, self.kappa);
+            return (e != 0.0 && e.is_finite()).then_some((g, h));
+        }
+        let gr = self.ground.as_ref().expect("ground pair");
+        let hgt = (p - gr.point).dot(&gr.normal);
+        let s = hgt * hgt;
+        if hgt <= 0.0 || s >= s_hat {
+            return None;
+        }
+        let (_, db, d2b) = barrier(s, s_hat);
+        let ds = gr.normal * (2.0 * hgt);
+        let n = gr.normal;
+        let mut g = Grad6::zeros();
+        g.fixed_rows_mut::<2>(0)
+            .copy_from(&(ds * (self.kappa * db)));
+        let mut h = Hess6::zeros();
+        h.fixed_view_mut::<2, 2>(0, 0).copy_from(
+            &((ds * ds.transpose() * d2b + n * n.transpose() * (2.0 * db)) * self.kappa),
+        );
+        Some((g, h))
     }
 
     /// The degrees of freedom of a point and `d point / d dof` for each; second derivative
@@ -669,7 +705,6 @@ impl BarrierContact {
         grad: &mut dyn FnMut(Dof, Real),
         hess: Option<&mut dyn FnMut(Dof, Dof, Real)>,
     ) {
-        let s_hat = self.d_hat * self.d_hat;
         let mut jac: [Vec<(Dof, Vec2)>; 3] = Default::default();
         let mut noop = |_: Dof, _: Dof, _: Real| {};
         let want_h = hess.is_some();
@@ -678,46 +713,15 @@ impl BarrierContact {
             None => &mut noop,
         };
         for pair in &self.pairs {
-            let [p, a, b] = self.points(pair, x, q);
-            let (g, h) = if pair.ground {
-                let gr = self.ground.as_ref().expect("ground pair");
-                let hgt = (p - gr.point).dot(&gr.normal);
-                let s = hgt * hgt;
-                if hgt <= 0.0 || s >= s_hat {
-                    continue;
-                }
-                let (_, db, d2b) = barrier(s, s_hat);
-                let ds = gr.normal * (2.0 * hgt);
-                let mut g = Grad6::zeros();
-                g[0] = self.kappa * db * ds.x;
-                g[1] = self.kappa * db * ds.y;
-                let mut h = Hess6::zeros();
-                let n = gr.normal;
-                let hp = (ds * ds.transpose() * d2b + n * n.transpose() * (2.0 * db)) * self.kappa;
-                h.fixed_view_mut::<2, 2>(0, 0).copy_from(&hp);
-                (g, h)
-            } else {
-                let (s, ds, d2s, _) = point_segment_distance2(p, a, b);
-                if s >= s_hat || s <= 0.0 {
-                    continue;
-                }
-                let (_, db, d2b) = barrier(s, s_hat);
-                (
-                    ds * (self.kappa * db),
-                    (ds * ds.transpose() * d2b + d2s * db) * self.kappa,
-                )
+            let Some((g, h)) = self.barrier_derivatives(pair, self.points(pair, x, q)) else {
+                continue;
             };
             let hp = if want_h { project_psd(&h) } else { h };
             self.scatter(pair, q, &g, want_h.then_some(&hp), grad, hess, &mut jac);
         }
         for lag in &self.lags {
-            let pair = self.lag_pair(lag);
-            let (u, du) = self.slip(lag, x, q);
-            let (_, f1, f2) = mollifier(u.abs(), self.eps_x);
-            let scale = self.mu * lag.lambda;
-            let g = du * (scale * f1 * u.signum());
-            let h = du * du.transpose() * (scale * f2);
-            self.scatter(&pair, q, &g, want_h.then_some(&h), grad, hess, &mut jac);
+            let (g, h) = self.friction_derivatives(lag, x, q);
+            self.scatter(&lag.pair, q, &g, want_h.then_some(&h), grad, hess, &mut jac);
         }
         for b in &self.bodies {
             let p = q[b.obstacle];
@@ -751,10 +755,7 @@ impl BarrierContact {
         let mut alpha: Real = 1.0;
         for b in self.bodies.iter().filter(|b| b.rotates) {
             let dtheta = self.dq[b.first + 2].abs();
-            let r = self.polygons[b.obstacle]
-                .iter()
-                .map(|l| l.norm())
-                .fold(0.0, Real::max);
+            let r = self.radii[b.obstacle];
             if dtheta > 0.0 && r > 0.0 && gap > 0.0 {
                 alpha = alpha.min((0.4 * gap / r).sqrt() / dtheta);
             }
@@ -856,31 +857,29 @@ impl BarrierContact {
         if let (d, Some(kind)) = best {
             return Some(format!("{} at distance {d:e} m", describe(&kind)));
         }
-        let inside = |poly: &mut dyn Iterator<Item = (Vec2, Vec2)>, p: Vec2| {
-            let mut c = false;
-            for (a, b) in poly {
-                if (a.y > p.y) != (b.y > p.y) && p.x < a.x + (p.y - a.y) / (b.y - a.y) * (b.x - a.x)
-                {
-                    c = !c;
-                }
-            }
-            c
-        };
         for (o, poly) in self.polygons.iter().enumerate() {
-            let n = poly.len();
-            let corner = |k: usize| self.corner(&self.q, o as u32, (k % n) as u32);
+            // A vertex against the obstacle's own polygon, in the obstacle's frame.
+            let [cx, cy, theta] = self.q[o];
             for &v in &self.boundary_vertices {
-                let mut edges = (0..n).map(|k| (corner(k), corner(k + 1)));
-                if inside(&mut edges, x[v as usize]) {
+                let local = rotate(-theta, x[v as usize] - Vec2::new(cx, cy));
+                if strictly_inside(poly, local, 0.0) {
                     return Some(format!("vertex {v} inside obstacles[{o}]"));
                 }
             }
-            for k in 0..n {
-                let mut edges = self
-                    .boundary
-                    .iter()
-                    .map(|&[a, b]| (x[a as usize], x[b as usize]));
-                if inside(&mut edges, corner(k)) {
+            // A corner against the body's boundary (even-odd over its boundary edges, which
+            // may form several loops).
+            for k in 0..poly.len() {
+                let c = self.corner(&self.q, o as u32, k as u32);
+                let mut inside = false;
+                for &[a, b] in &self.boundary {
+                    let (a, b) = (x[a as usize], x[b as usize]);
+                    if (a.y > c.y) != (b.y > c.y)
+                        && c.x < a.x + (c.y - a.y) / (b.y - a.y) * (b.x - a.x)
+                    {
+                        inside = !inside;
+                    }
+                }
+                if inside {
                     return Some(format!("obstacles[{o}] corner {k} inside the body"));
                 }
             }
@@ -941,22 +940,14 @@ impl BarrierContact {
         let mut e = 0.0;
         for &(k, slot, lagged) in &self.vertex_items[a..b] {
             let pair = if lagged {
-                self.lag_pair(&self.lags[k as usize])
+                self.lags[k as usize].pair
             } else {
                 self.pairs[k as usize]
             };
             let mut pts = self.points(&pair, x, &self.q);
             pts[slot as usize] = p;
             if lagged {
-                let lag = &self.lags[k as usize];
-                let then = self.points(&pair, &self.x_start, &self.q_start);
-                let w = [1.0, -(1.0 - lag.beta), -lag.beta];
-                let mut rel = Vec2::zeros();
-                for i in 0..3 {
-                    rel += (pts[i] - then[i]) * w[i];
-                }
-                let (f0, _, _) = mollifier(rel.dot(&lag.tangent).abs(), self.eps_x);
-                e += self.mu * lag.lambda * f0;
+                e += self.friction_energy(&self.lags[k as usize], pts);
             } else {
                 let (sq, _, _) = self.geometry(&pair, pts[0], pts[1], pts[2]);
                 if sq <= 0.0 {
@@ -973,11 +964,8 @@ impl BarrierContact {
     pub(crate) fn index_vertices(&mut self, n_vertices: usize) {
         self.vertex_start.clear();
         self.vertex_start.resize(n_vertices + 1, 0);
-        let mut lag_pairs = std::mem::take(&mut self.lag_pairs);
-        lag_pairs.clear();
-        lag_pairs.extend(self.lags.iter().map(|l| self.lag_pair(l)));
-        let each = |pairs: &[Pair], f: &mut dyn FnMut(u32, u32, u8)| {
-            for (k, pair) in pairs.iter().enumerate() {
+        let each = |pairs: &mut dyn Iterator<Item = &Pair>, f: &mut dyn FnMut(u32, u32, u8)| {
+            for (k, pair) in pairs.enumerate() {
                 for (slot, pt) in [pair.p, pair.a, pair.b].into_iter().enumerate() {
                     if let Point::Soft(v) = pt {
                         f(v, k as u32, slot as u8);
@@ -986,8 +974,12 @@ impl BarrierContact {
             }
         };
         let start = &mut self.vertex_start;
-        each(&self.pairs, &mut |v, _, _| start[v as usize + 1] += 1);
-        each(&lag_pairs, &mut |v, _, _| start[v as usize + 1] += 1);
+        each(&mut self.pairs.iter(), &mut |v, _, _| {
+            start[v as usize + 1] += 1
+        });
+        each(&mut self.lags.iter().map(|l| &l.pair), &mut |v, _, _| {
+            start[v as usize + 1] += 1
+        });
         for v in 0..n_vertices {
             start[v + 1] += start[v];
         }
@@ -998,22 +990,20 @@ impl BarrierContact {
         fill.clear();
         fill.extend_from_slice(&start[..n_vertices]);
         let items = &mut self.vertex_items;
-        each(&self.pairs, &mut |v, k, slot| {
+        each(&mut self.pairs.iter(), &mut |v, k, slot| {
             items[fill[v as usize] as usize] = (k, slot, false);
             fill[v as usize] += 1;
         });
-        each(&lag_pairs, &mut |v, k, slot| {
+        each(&mut self.lags.iter().map(|l| &l.pair), &mut |v, k, slot| {
             items[fill[v as usize] as usize] = (k, slot, true);
             fill[v as usize] += 1;
         });
         self.fill = fill;
-        self.lag_pairs = lag_pairs;
     }
 
     /// The barrier and friction terms' gradient and Hessian block (`h00, h01, h11`, not
     /// projected) with respect to soft vertex `v` at `x` (the obstacles at `self.q`).
     pub(crate) fn vertex_terms(&self, v: usize, x: &[Vec2]) -> (Vec2, [Real; 3]) {
-        let s_hat = self.d_hat * self.d_hat;
         let mut g = Vec2::zeros();
         let mut h = [0.0; 3];
         if self.vertex_start.len() <= v + 1 {
@@ -1026,45 +1016,13 @@ impl BarrierContact {
         for &(k, slot, lagged) in &self.vertex_items[a..b] {
             let i = 2 * slot as usize;
             let (g6, h6) = if lagged {
-                let lag = &self.lags[k as usize];
-                let (u, du) = self.slip(lag, x, &self.q);
-                let (_, f1, f2) = mollifier(u.abs(), self.eps_x);
-                let scale = self.mu * lag.lambda;
-                (
-                    du * (scale * f1 * u.signum()),
-                    du * du.transpose() * (scale * f2),
-                )
+                self.friction_derivatives(&self.lags[k as usize], x, &self.q)
             } else {
                 let pair = &self.pairs[k as usize];
-                let [p, pa, pb] = self.points(pair, x, &self.q);
-                if pair.ground {
-                    let gr = self.ground.as_ref().expect("ground pair");
-                    let hgt = (p - gr.point).dot(&gr.normal);
-                    let sq = hgt * hgt;
-                    if hgt <= 0.0 || sq >= s_hat {
-                        continue;
-                    }
-                    let (_, db, d2b) = barrier(sq, s_hat);
-                    let ds = gr.normal * (2.0 * hgt);
-                    let gp = ds * (self.kappa * db);
-                    let n = gr.normal;
-                    let hp =
-                        (ds * ds.transpose() * d2b + n * n.transpose() * (2.0 * db)) * self.kappa;
-                    g += gp;
-                    h[0] += hp[(0, 0)];
-                    h[1] += hp[(0, 1)];
-                    h[2] += hp[(1, 1)];
-                    continue;
+                match self.barrier_derivatives(pair, self.points(pair, x, &self.q)) {
+                    Some(d) => d,
+                    None => continue,
                 }
-                let (sq, ds, d2s, _) = point_segment_distance2(p, pa, pb);
-                if sq >= s_hat || sq <= 0.0 {
-                    continue;
-                }
-                let (_, db, d2b) = barrier(sq, s_hat);
-                (
-                    ds * (self.kappa * db),
-                    (ds * ds.transpose() * d2b + d2s * db) * self.kappa,
-                )
             };
             g += Vec2::new(g6[i], g6[i + 1]);
             h[0] += h6[(i, i)];
@@ -1145,10 +1103,7 @@ impl BarrierContact {
         // The largest corner motion, capped.
         let mut motion: Real = 0.0;
         for b in &self.bodies {
-            let r = self.polygons[b.obstacle]
-                .iter()
-                .map(|l| l.norm())
-                .fold(0.0, Real::max);
+            let r = self.radii[b.obstacle];
             let mut m = (self.dq[b.first].powi(2) + self.dq[b.first + 1].powi(2)).sqrt();
             if b.rotates {
                 m += r * self.dq[b.first + 2].abs();
@@ -1274,47 +1229,6 @@ fn key(kind: &ContactKind) -> (u8, u32, u32, u32, u32) {
             corner,
             edge,
         } => (2, obstacle, corner, edge[0], edge[1]),
-    }
-}
-
-/// The points of a pair from its kind.
-fn pair_of(kind: ContactKind, ground: Option<&Ground>, polygons: &[Vec<Vec2>]) -> Pair {
-    match kind {
-        ContactKind::VertexGround { vertex } => {
-            let g = ground.expect("ground pair without a ground");
-            Pair {
-                kind,
-                p: Point::Soft(vertex),
-                a: Point::Fixed(g.point),
-                b: Point::Fixed(g.point + Vec2::new(g.normal.y, -g.normal.x)),
-                ground: true,
-            }
-        }
-        ContactKind::VertexObstacle {
-            vertex,
-            obstacle,
-            edge,
-        } => {
-            let n = polygons[obstacle as usize].len() as u32;
-            Pair {
-                kind,
-                p: Point::Soft(vertex),
-                a: Point::Corner(obstacle, edge),
-                b: Point::Corner(obstacle, (edge + 1) % n),
-                ground: false,
-            }
-        }
-        ContactKind::CornerEdge {
-            obstacle,
-            corner,
-            edge,
-        } => Pair {
-            kind,
-            p: Point::Corner(obstacle, corner),
-            a: Point::Soft(edge[0]),
-            b: Point::Soft(edge[1]),
-            ground: false,
-        },
     }
 }
 

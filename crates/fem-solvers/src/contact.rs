@@ -491,6 +491,11 @@ impl Obstacle {
         self.centroid
     }
 
+    /// Largest distance of a polygon vertex from the centroid, m.
+    pub fn radius(&self) -> Real {
+        self.radius
+    }
+
     /// Moment of inertia about the centroid, kg m^2 (0 unless dynamic).
     pub fn inertia(&self) -> Real {
         self.inertia

@@ -123,8 +123,7 @@ pub struct StaticStepper {
     layout: u64,
     /// Barrier contact, when the model has a ground or obstacles.
     contact: Option<BarrierContact>,
-    /// The obstacles' poses at load factor 0, and their target poses and new states.
-    poses0: Vec<[Real; 3]>,
+    /// The obstacles' target poses and new states.
     targets: Vec<[Real; 3]>,
     bodies_new: Vec<BodyState>,
     /// The smallest distance over the candidate pairs at the last equilibrium, m.
@@ -186,7 +185,6 @@ impl StaticStepper {
         let n = model.mesh().n_vertices();
         Ok(StaticStepper {
             contact,
-            poses0: Vec::new(),
             targets: Vec::new(),
             bodies_new: Vec::new(),
             min_distance: Real::INFINITY,
@@ -248,13 +246,6 @@ impl StaticStepper {
         if t == 0.0 {
             self.increment = 1.0 / self.params.load_steps as Real;
             self.halvings = 0;
-            self.poses0.clear();
-            self.poses0.extend(
-                state
-                    .bodies
-                    .iter()
-                    .map(|b| [b.position.x, b.position.y, b.angle]),
-            );
         }
         for ((o, &v), u) in self
             .origin
@@ -352,38 +343,22 @@ impl Stepper for StaticStepper {
                 springs: model.springs(),
             };
             if let Some(c) = self.contact.as_mut() {
-                // Kinematic obstacles move in proportion to the load factor; the others start
-                // where they are.
-                if self.poses0.len() != state.bodies.len() {
-                    self.poses0 = state
-                        .bodies
-                        .iter()
-                        .map(|b| [b.position.x, b.position.y, b.angle])
-                        .collect();
-                }
+                // A kinematic obstacle is where its schedule is at the same fraction `next` of
+                // its window (its whole motion times the load factor); the others start where
+                // they are.
                 self.targets.clear();
-                for ((obs, body), p0) in model
-                    .obstacles()
-                    .iter()
-                    .zip(&state.bodies)
-                    .zip(&self.poses0)
-                {
-                    self.targets.push(match obs.motion() {
-                        ObstacleMotion::Kinematic {
-                            velocity,
-                            angular_velocity,
-                            start,
-                            end,
-                        } => {
-                            let span = end - start;
-                            [
-                                p0[0] + next * velocity.x * span,
-                                p0[1] + next * velocity.y * span,
-                                p0[2] + next * angular_velocity * span,
-                            ]
+                for (obs, body) in model.obstacles().iter().zip(&state.bodies) {
+                    let target = match obs.motion() {
+                        ObstacleMotion::Kinematic { start, end, .. } => {
+                            obs.scheduled_pose(start + next * (end - start))
                         }
-                        _ => [body.position.x, body.position.y, body.angle],
-                    });
+                        _ => None,
+                    };
+                    self.targets.push(target.unwrap_or([
+                        body.position.x,
+                        body.position.y,
+                        body.angle,
+                    ]));
                 }
                 c.begin(
                     &state.x,
