@@ -5,58 +5,13 @@
 //! leg with a contact force equal to its weight.
 
 use fem_core::dispatch_energy;
-use fem_core::energy::Energy;
 use fem_core::math::{Real, Vec2};
 use fem_scene::build::{NoFiles, build_mesh, build_model, build_stepper, energy, initial_state};
 use fem_scene::cases::load_case;
 use fem_scene::run::{RunEnv, run};
 use fem_scene::scene::LoadedScene;
-use fem_solvers::{ContactKind, Model, State, Stepper};
-
-/// Whether `p` lies strictly inside the closed polygon (even-odd rule).
-fn inside(polygon: &[Vec2], p: Vec2) -> bool {
-    let n = polygon.len();
-    let mut c = false;
-    for k in 0..n {
-        let (a, b) = (polygon[k], polygon[(k + 1) % n]);
-        if (a.y > p.y) != (b.y > p.y) && p.x < a.x + (p.y - a.y) / (b.y - a.y) * (b.x - a.x) {
-            c = !c;
-        }
-    }
-    c
-}
-
-/// The smallest height above the ground over all vertices, after checking that no vertex is
-/// inside an obstacle and no obstacle corner inside a triangle.
-fn check_apart<E: Energy>(model: &Model<E>, state: &State) -> Real {
-    let g = model.ground().expect("case D has a ground");
-    let lowest = state
-        .x
-        .iter()
-        .map(|p| (p - g.point).dot(&g.normal))
-        .fold(Real::INFINITY, Real::min);
-    for (obs, body) in model.obstacles().iter().zip(&state.bodies) {
-        let poly = obs.world_polygon(body);
-        for (v, p) in state.x.iter().enumerate() {
-            assert!(
-                !inside(&poly, *p),
-                "step {}: vertex {v} in the debris",
-                state.step
-            );
-        }
-        for c in &poly {
-            for tri in model.mesh().triangles() {
-                let tri = tri.map(|i| state.x[i as usize]);
-                assert!(
-                    !inside(&tri, *c),
-                    "step {}: debris corner in the body",
-                    state.step
-                );
-            }
-        }
-    }
-    lowest
-}
+use fem_solvers::testing::assert_apart;
+use fem_solvers::{ContactKind, Stepper};
 
 fn case_d(overrides: &[&str]) -> LoadedScene {
     let o: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();
@@ -77,7 +32,7 @@ fn case_d_under_implicit_euler_at_90_hz_never_touches_the_ground_or_the_debris()
         let mut debris_contact = false;
         for _ in 0..135 {
             stepper.step(&model, &mut state).unwrap();
-            lowest = lowest.min(check_apart(&model, &state));
+            lowest = lowest.min(assert_apart(&model, &state));
             for c in stepper.contacts() {
                 assert!(c.gap > 0.0, "step {}: {c:?}", state.step);
                 debris_contact |= matches!(c.kind, ContactKind::CornerEdge { .. })

@@ -1,4 +1,5 @@
-//! The case A beam and models built on it, for tests, benches and examples.
+//! The case A beam and models built on it, and a brute-force contact oracle, for tests,
+//! benches and examples.
 //!
 //! The meshes come from the framework's one rectangle generator,
 //! [`fem_core::structured::rectangle`] (re-exported here): node `(i, j)` sits at
@@ -60,6 +61,59 @@ pub fn stretched<E: Energy>(model: &Model<E>, factor: Real) -> Result<State, Sol
         .map(|p| Vec2::new(factor * p.x, p.y))
         .collect();
     State::new(model, x, vec![Vec2::zeros(); model.mesh().n_vertices()])
+}
+
+/// Whether `p` lies strictly inside the closed polygon (even-odd rule).
+fn inside(polygon: &[Vec2], p: Vec2) -> bool {
+    let n = polygon.len();
+    let mut c = false;
+    for k in 0..n {
+        let (a, b) = (polygon[k], polygon[(k + 1) % n]);
+        if (a.y > p.y) != (b.y > p.y) && p.x < a.x + (p.y - a.y) / (b.y - a.y) * (b.x - a.x) {
+            c = !c;
+        }
+    }
+    c
+}
+
+/// A contact oracle independent of any solver's candidate pairs: panics when a vertex lies on
+/// or below the ground or inside an obstacle, or an obstacle corner inside a triangle of the
+/// body. Returns the smallest height of a vertex above the ground (infinite without one).
+/// Brute force over every vertex, triangle and corner: for tests.
+pub fn assert_apart<E: Energy>(model: &Model<E>, state: &State) -> Real {
+    let mut lowest = Real::INFINITY;
+    if let Some(g) = model.ground() {
+        for (v, p) in state.x.iter().enumerate() {
+            let h = (p - g.point).dot(&g.normal);
+            assert!(
+                h > 0.0,
+                "t = {}: vertex {v} at {p:?} on or below the ground",
+                state.t
+            );
+            lowest = lowest.min(h);
+        }
+    }
+    for (o, (obs, body)) in model.obstacles().iter().zip(&state.bodies).enumerate() {
+        let poly = obs.world_polygon(body);
+        for (v, p) in state.x.iter().enumerate() {
+            assert!(
+                !inside(&poly, *p),
+                "t = {}: vertex {v} inside obstacle {o}",
+                state.t
+            );
+        }
+        for (k, c) in poly.iter().enumerate() {
+            for (t, tri) in model.mesh().triangles().iter().enumerate() {
+                let tri = tri.map(|i| state.x[i as usize]);
+                assert!(
+                    !inside(&tri, *c),
+                    "t = {}: corner {k} of obstacle {o} inside triangle {t}",
+                    state.t
+                );
+            }
+        }
+    }
+    lowest
 }
 
 #[cfg(test)]

@@ -5,100 +5,16 @@
 //! contact), and at rest the contact forces carry the weight.
 
 use crate::common::lame;
+use crate::contact::{block, strip_and_slab};
 use fem_core::energy::{Energy, NeoHookean};
 use fem_core::math::{Real, Vec2};
-use fem_solvers::testing::{RectangleParams, rectangle};
+use fem_solvers::testing::{RectangleParams, assert_apart, rectangle};
 use fem_solvers::{
-    ContactKind, Ground, ImplicitParams, ImplicitStepper, Model, ObstacleMotion, Region, State,
+    ContactKind, ImplicitParams, ImplicitStepper, Model, ObstacleMotion, Region, State,
     StaticParams, StaticStepper, Stepper, VbdParams, VbdStepper,
 };
 
 const DT: Real = 1.0 / 90.0;
-
-/// A 1 m x 1 m, 1 kg Neo-Hookean block (E = 10 kPa, 8 x 8 cells) 0.2 m above the ground y = 0.
-fn block() -> Model<NeoHookean> {
-    let mesh = rectangle(&RectangleParams {
-        origin: [0.0, 0.2],
-        ..RectangleParams::new(1.0, 1.0, 8, 8)
-    })
-    .unwrap();
-    let mut m = Model::with_total_mass(mesh, NeoHookean::new(lame(1e4)).unwrap(), 1.0).unwrap();
-    m.set_standard_gravity();
-    m.set_ground(Some(Ground::horizontal(0.0))).unwrap();
-    m
-}
-
-/// A 4 m x 0.5 m strip pinned along its bottom (E = 10 kPa, 1 kg) and a dynamic rigid slab
-/// (2 m x 0.2 m, 0.5 kg) 0.1 m above its middle.
-fn strip_and_slab() -> (Model<NeoHookean>, usize) {
-    let mesh = rectangle(&RectangleParams::new(4.0, 0.5, 16, 4)).unwrap();
-    let mut m = Model::with_total_mass(mesh, NeoHookean::new(lame(1e4)).unwrap(), 1.0).unwrap();
-    m.set_standard_gravity();
-    m.pin(&Region::in_box(Vec2::new(0.0, 0.0), Vec2::new(4.0, 0.0)))
-        .unwrap();
-    let slab = m
-        .add_obstacle(
-            &[
-                Vec2::new(1.0, 0.6),
-                Vec2::new(3.0, 0.6),
-                Vec2::new(3.0, 0.8),
-                Vec2::new(1.0, 0.8),
-            ],
-            ObstacleMotion::Dynamic {
-                mass: 0.5,
-                rotates: true,
-            },
-        )
-        .unwrap();
-    (m, slab)
-}
-
-/// Whether `p` lies strictly inside the closed polygon (even-odd rule).
-fn inside(polygon: &[Vec2], p: Vec2) -> bool {
-    let n = polygon.len();
-    let mut c = false;
-    for k in 0..n {
-        let (a, b) = (polygon[k], polygon[(k + 1) % n]);
-        if (a.y > p.y) != (b.y > p.y) && p.x < a.x + (p.y - a.y) / (b.y - a.y) * (b.x - a.x) {
-            c = !c;
-        }
-    }
-    c
-}
-
-/// An oracle independent of the solver's candidate pairs: no vertex on or below the ground
-/// or inside an obstacle, and no obstacle corner inside a triangle of the body.
-fn check_apart<E: Energy>(model: &Model<E>, state: &State) {
-    if let Some(g) = model.ground() {
-        for (v, p) in state.x.iter().enumerate() {
-            assert!(
-                (p - g.point).dot(&g.normal) > 0.0,
-                "t = {}: vertex {v} at {p:?} on or below the ground",
-                state.t
-            );
-        }
-    }
-    for (o, (obs, body)) in model.obstacles().iter().zip(&state.bodies).enumerate() {
-        let poly = obs.world_polygon(body);
-        for (v, p) in state.x.iter().enumerate() {
-            assert!(
-                !inside(&poly, *p),
-                "t = {}: vertex {v} inside obstacle {o}",
-                state.t
-            );
-        }
-        for (k, c) in poly.iter().enumerate() {
-            for (t, tri) in model.mesh().triangles().iter().enumerate() {
-                let tri = tri.map(|i| state.x[i as usize]);
-                assert!(
-                    !inside(&tri, *c),
-                    "t = {}: corner {k} of obstacle {o} inside triangle {t}",
-                    state.t
-                );
-            }
-        }
-    }
-}
 
 /// Step implicit Euler for `t_end` seconds, checking the smallest distance after every
 /// step; returns the state, the stepper and the smallest distance seen.
@@ -135,7 +51,7 @@ fn run_with<E: Energy, S: Stepper>(
     while state.t < t_end {
         s.step(model, &mut state)
             .unwrap_or_else(|e| panic!("t = {}: {e}", state.t));
-        check_apart(model, &state);
+        assert_apart(model, &state);
         let d = distance(&s);
         assert!(d > 0.0, "t = {}: distance {d:e} m", state.t);
         for c in s.contacts() {
@@ -211,7 +127,7 @@ fn static_slab_on_strip_reaches_an_equilibrium_carried_by_the_contact_forces() {
         s.step(&model, &mut state)
             .unwrap_or_else(|e| panic!("load factor {}: {e}", state.t));
         assert!(s.min_distance() > 0.0, "distance {:e}", s.min_distance());
-        check_apart(&model, &state);
+        assert_apart(&model, &state);
     }
     let total: Vec2 = s.contacts().iter().map(|c| c.normal * c.force).sum();
     assert!(
@@ -258,10 +174,17 @@ fn coarse_strip_and_wedge() -> Model<NeoHookean> {
     m
 }
 
-/// The height of the soft top edge `[a, b]` at `x`.
-fn edge_height(state: &State, a: usize, b: usize, x: Real) -> Real {
-    let (pa, pb) = (state.x[a], state.x[b]);
-    pa.y + (pb.y - pa.y) * (x - pa.x) / (pb.x - pa.x)
+/// The wedge's tip and the height of the soft top edge from (0, 0.2) to (0.5, 0.2) under it.
+fn tip_and_edge_under<E: Energy>(model: &Model<E>, state: &State) -> (Vec2, Real) {
+    let tip = model.obstacles()[0].world_polygon(&state.bodies[0])[0];
+    let at = |p: Vec2| {
+        let v = (0..state.x.len())
+            .find(|&v| model.mesh().vertices()[v] == p)
+            .unwrap();
+        state.x[v]
+    };
+    let (pa, pb) = (at(Vec2::new(0.0, 0.2)), at(Vec2::new(0.5, 0.2)));
+    (tip, pa.y + (pb.y - pa.y) * (tip.x - pa.x) / (pb.x - pa.x))
 }
 
 #[test]
@@ -272,16 +195,7 @@ fn wedge_corner_no_longer_passes_through_a_coarse_soft_edge_implicit() {
     let model = coarse_strip_and_wedge();
     let (state, s, min) = run(&model, 1.0);
     assert!(min > 0.0);
-    let tip = model.obstacles()[0].world_polygon(&state.bodies[0])[0];
-    let (a, b) = (
-        (0..state.x.len())
-            .find(|&v| model.mesh().vertices()[v] == Vec2::new(0.0, 0.2))
-            .unwrap(),
-        (0..state.x.len())
-            .find(|&v| model.mesh().vertices()[v] == Vec2::new(0.5, 0.2))
-            .unwrap(),
-    );
-    let under = edge_height(&state, a, b, tip.x);
+    let (tip, under) = tip_and_edge_under(&model, &state);
     assert!(
         tip.y > under && tip.y - under < 1e-3,
         "tip at {tip:?}, edge under it at {under}"
@@ -308,14 +222,7 @@ fn wedge_corner_no_longer_passes_through_a_coarse_soft_edge_vbd() {
     let model = coarse_strip_and_wedge();
     let (state, s, min) = run_vbd(&model, 1.0);
     assert!(min > 0.0);
-    let tip = model.obstacles()[0].world_polygon(&state.bodies[0])[0];
-    let find = |p: Vec2| {
-        (0..state.x.len())
-            .find(|&v| model.mesh().vertices()[v] == p)
-            .unwrap()
-    };
-    let (a, b) = (find(Vec2::new(0.0, 0.2)), find(Vec2::new(0.5, 0.2)));
-    let under = edge_height(&state, a, b, tip.x);
+    let (tip, under) = tip_and_edge_under(&model, &state);
     assert!(
         tip.y > under && tip.y - under < 1e-3,
         "tip at {tip:?}, edge under it at {under}"
@@ -383,16 +290,9 @@ fn wedge_corner_no_longer_passes_through_a_coarse_soft_edge_static() {
     while state.t < 1.0 {
         s.step(&model, &mut state)
             .unwrap_or_else(|e| panic!("load factor {}: {e}", state.t));
-        check_apart(&model, &state);
+        assert_apart(&model, &state);
     }
-    let tip = model.obstacles()[0].world_polygon(&state.bodies[0])[0];
-    let find = |p: Vec2| {
-        (0..state.x.len())
-            .find(|&v| model.mesh().vertices()[v] == p)
-            .unwrap()
-    };
-    let (a, b) = (find(Vec2::new(0.0, 0.2)), find(Vec2::new(0.5, 0.2)));
-    let under = edge_height(&state, a, b, tip.x);
+    let (tip, under) = tip_and_edge_under(&model, &state);
     assert!(
         tip.y > under && tip.y - under < 1e-3,
         "tip at {tip:?}, edge under it at {under}"

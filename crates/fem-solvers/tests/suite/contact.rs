@@ -13,7 +13,7 @@ use fem_solvers::{
 };
 
 /// A 1 m x 1 m, 1 kg Neo-Hookean block (E = 10 kPa, 8 x 8 cells) 0.2 m above the ground y = 0.
-fn block() -> Model<NeoHookean> {
+pub(crate) fn block() -> Model<NeoHookean> {
     let mesh = rectangle(&RectangleParams {
         origin: [0.0, 0.2],
         ..RectangleParams::new(1.0, 1.0, 8, 8)
@@ -89,7 +89,7 @@ fn block_dropped_on_ground_rests_with_small_penetration_xpbd() {
 
 /// A 4 m x 0.5 m soft strip (E = 10 kPa, 1 kg) pinned along its bottom edge, and a 2 m x 0.2 m
 /// rigid slab of 0.5 kg 0.1 m above its middle.
-fn strip_and_slab() -> (Model<NeoHookean>, usize) {
+pub(crate) fn strip_and_slab() -> (Model<NeoHookean>, usize) {
     let mesh = rectangle(&RectangleParams::new(4.0, 0.5, 16, 4)).unwrap();
     let mut m = Model::with_total_mass(mesh, NeoHookean::new(lame(1e4)).unwrap(), 1.0).unwrap();
     m.set_standard_gravity();
