@@ -16,7 +16,7 @@
 use crate::par::prelude::*;
 
 use crate::element::Tri3;
-use crate::energy::Energy;
+use crate::energy::{Energy, EnergyOf};
 use crate::math::{Mat2, Mat6, Real, Vec2};
 use crate::mesh::Mesh;
 use crate::partition::{ELEMENT_CHUNK, Target, for_each_chunk};
@@ -103,17 +103,17 @@ fn check_len(mesh: &Mesh, x: &[Vec2], what: &str, len: usize) {
 
 /// Elastic nodal forces `f = -dE/dx` (N per unit thickness), serial reference path.
 /// Overwrites `f`. Panics if `x` or `f` does not have one entry per vertex.
-pub fn populate_forces_serial<E: Energy>(
+pub fn populate_forces_serial<M: EnergyOf>(
     mesh: &Mesh,
-    energy: &E,
+    energy: &M,
     x: &[Vec2],
     f: &mut [Vec2],
 ) -> AssemblyReport {
     check_len(mesh, x, "forces", f.len());
     f.fill(Vec2::zeros());
     let mut report = AssemblyReport::EMPTY;
-    for (tri, el) in mesh.triangles().iter().zip(mesh.elements()) {
-        let (fe, j) = element_forces(energy, el, tri, x);
+    for (t, (tri, el)) in mesh.triangles().iter().zip(mesh.elements()).enumerate() {
+        let (fe, j) = element_forces(energy.energy_of(t), el, tri, x);
         report.add(j);
         for (k, &v) in tri.iter().enumerate() {
             f[v as usize] += fe[k];
@@ -123,9 +123,9 @@ pub fn populate_forces_serial<E: Energy>(
 }
 
 /// Elastic nodal forces on the current rayon pool; bit-identical to [`populate_forces_serial`].
-pub fn populate_forces<E: Energy>(
+pub fn populate_forces<M: EnergyOf>(
     mesh: &Mesh,
-    energy: &E,
+    energy: &M,
     x: &[Vec2],
     f: &mut [Vec2],
     scratch: &mut Scratch,
@@ -143,7 +143,12 @@ pub fn populate_forces<E: Energy>(
         let range = k * ELEMENT_CHUNK..((k + 1) * ELEMENT_CHUNK).min(mesh.n_triangles());
         let mut r = AssemblyReport::EMPTY;
         for e in range {
-            let (fe, j) = element_forces(energy, &mesh.elements()[e], &mesh.triangles()[e], x);
+            let (fe, j) = element_forces(
+                energy.energy_of(e),
+                &mesh.elements()[e],
+                &mesh.triangles()[e],
+                x,
+            );
             r.add(j);
             for (c, target) in plan.targets(e).into_iter().enumerate() {
                 match target {
@@ -161,20 +166,23 @@ pub fn populate_forces<E: Energy>(
 }
 
 /// Total elastic energy `sum_e a_e psi(F_e)` (J per unit thickness), summed in triangle order.
-pub fn elastic_energy_serial<E: Energy>(mesh: &Mesh, energy: &E, x: &[Vec2]) -> Real {
+pub fn elastic_energy_serial<M: EnergyOf>(mesh: &Mesh, energy: &M, x: &[Vec2]) -> Real {
     check_len(mesh, x, "positions", x.len());
     let mut total = 0.0;
     for (t, el) in mesh.elements().iter().enumerate() {
-        total += el.area * energy.psi(&el.deformation_gradient(mesh.gather(t, x)));
+        total += el.area
+            * energy
+                .energy_of(t)
+                .psi(&el.deformation_gradient(mesh.gather(t, x)));
     }
     total
 }
 
 /// Total elastic energy on the current rayon pool; bit-identical to [`elastic_energy_serial`]
 /// (element energies are computed in parallel and summed in triangle order).
-pub fn elastic_energy<E: Energy>(
+pub fn elastic_energy<M: EnergyOf>(
     mesh: &Mesh,
-    energy: &E,
+    energy: &M,
     x: &[Vec2],
     scratch: &mut Scratch,
 ) -> Real {
@@ -187,7 +195,10 @@ pub fn elastic_energy<E: Energy>(
             for (k, o) in out.iter_mut().enumerate() {
                 let t = c * ELEMENT_CHUNK + k;
                 let el = &mesh.elements()[t];
-                *o = el.area * energy.psi(&el.deformation_gradient(mesh.gather(t, x)));
+                *o = el.area
+                    * energy
+                        .energy_of(t)
+                        .psi(&el.deformation_gradient(mesh.gather(t, x)));
             }
         });
     buf.iter().fold(0.0, |acc, &e| acc + e)
@@ -344,9 +355,9 @@ fn element_stiffness<E: Energy>(
 }
 
 /// Stiffness `K = d^2E/dx^2` into `k` (which must have been built for `mesh`), serial path.
-pub fn populate_stiffness_serial<E: Energy>(
+pub fn populate_stiffness_serial<M: EnergyOf>(
     mesh: &Mesh,
-    energy: &E,
+    energy: &M,
     x: &[Vec2],
     tangent: Tangent,
     k: &mut Stiffness,
@@ -355,7 +366,12 @@ pub fn populate_stiffness_serial<E: Energy>(
     k.matrix.values.fill(0.0);
     let mut report = AssemblyReport::EMPTY;
     for (t, tri) in mesh.triangles().iter().enumerate() {
-        let (ke, j) = element_stiffness(energy, &mesh.elements()[t], mesh.gather(t, x), tangent);
+        let (ke, j) = element_stiffness(
+            energy.energy_of(t),
+            &mesh.elements()[t],
+            mesh.gather(t, x),
+            tangent,
+        );
         report.add(j);
         let offs = k.block_offsets[t];
         k.add_block(tri, &offs, &ke);
@@ -365,9 +381,9 @@ pub fn populate_stiffness_serial<E: Energy>(
 
 /// Stiffness on the current rayon pool: element blocks in parallel, then added into the matrix
 /// in triangle order, so the result is bit-identical to [`populate_stiffness_serial`].
-pub fn populate_stiffness<E: Energy>(
+pub fn populate_stiffness<M: EnergyOf>(
     mesh: &Mesh,
-    energy: &E,
+    energy: &M,
     x: &[Vec2],
     tangent: Tangent,
     k: &mut Stiffness,
@@ -386,8 +402,12 @@ pub fn populate_stiffness<E: Energy>(
             let mut r = AssemblyReport::EMPTY;
             for (i, o) in out.iter_mut().enumerate() {
                 let t = c * ELEMENT_CHUNK + i;
-                let (ke, j) =
-                    element_stiffness(energy, &mesh.elements()[t], mesh.gather(t, x), tangent);
+                let (ke, j) = element_stiffness(
+                    energy.energy_of(t),
+                    &mesh.elements()[t],
+                    mesh.gather(t, x),
+                    tangent,
+                );
                 r.add(j);
                 *o = ke;
             }

@@ -115,6 +115,9 @@ pub enum MeshError {
         /// The rejected value.
         value: Real,
     },
+    /// Region tags that do not fit the mesh.
+    #[error("regions: {0}")]
+    Regions(String),
 }
 
 /// For each vertex, the `(triangle, corner)` pairs that touch it, sorted by triangle index.
@@ -165,6 +168,10 @@ pub struct Mesh {
     elements: Vec<Tri3>,
     adjacency: VertexAdjacency,
     plan: ScatterPlan,
+    /// One region tag per triangle, or empty (see [`Mesh::set_regions`]).
+    regions: Vec<u32>,
+    /// The name of each region tag.
+    region_names: Vec<String>,
 }
 
 impl Mesh {
@@ -289,7 +296,47 @@ impl Mesh {
             elements,
             adjacency,
             plan,
+            regions: Vec::new(),
+            region_names: Vec::new(),
         })
+    }
+
+    /// Tag the triangles with named regions (tissues: a bone inside soft tissue), as a mesh
+    /// file or the mesh pipeline carries them: `tags[t]` is the region of triangle `t`, an
+    /// index into `names`. Errors (naming the first bad entry) unless there is one tag per
+    /// triangle and every tag has a name. The tags are data for the caller (a scene gives
+    /// each region its material); the mesh itself does not use them.
+    pub fn set_regions(&mut self, tags: Vec<u32>, names: Vec<String>) -> Result<(), MeshError> {
+        if tags.len() != self.triangles.len() {
+            return Err(MeshError::Regions(format!(
+                "{} tags for {} triangles",
+                tags.len(),
+                self.triangles.len()
+            )));
+        }
+        if let Some((t, tag)) = tags
+            .iter()
+            .enumerate()
+            .find(|(_, t)| **t as usize >= names.len())
+        {
+            return Err(MeshError::Regions(format!(
+                "triangle {t} has tag {tag}, but only {} region names are given",
+                names.len()
+            )));
+        }
+        self.regions = tags;
+        self.region_names = names;
+        Ok(())
+    }
+
+    /// The region tag of each triangle (empty when the mesh carries no regions).
+    pub fn region_tags(&self) -> &[u32] {
+        &self.regions
+    }
+
+    /// The name of each region tag (empty when the mesh carries no regions).
+    pub fn region_names(&self) -> &[String] {
+        &self.region_names
     }
 
     /// Rest positions.
@@ -355,6 +402,30 @@ impl Mesh {
         Ok(m)
     }
 
+    /// Lumped masses from one density per triangle (kg/m^3 with unit thickness; a body of
+    /// several materials): each triangle gives a third of its mass to each corner. Errors name
+    /// the first density that is not finite and > 0, or a length that is not one per triangle.
+    pub fn lumped_masses_from_densities(&self, densities: &[Real]) -> Result<Vec<Real>, MeshError> {
+        if densities.len() != self.n_triangles() {
+            return Err(MeshError::BadMassInput {
+                field: "densities.len()",
+                value: densities.len() as Real,
+            });
+        }
+        if let Some(&d) = densities.iter().find(|d| !(d.is_finite() && **d > 0.0)) {
+            return Err(MeshError::BadMassInput {
+                field: "density",
+                value: d,
+            });
+        }
+        let mut m = vec![0.0; self.n_vertices()];
+        for ((tri, el), &density) in self.triangles.iter().zip(&self.elements).zip(densities) {
+            let third = density * el.area / 3.0;
+            tri.iter().for_each(|&i| m[i as usize] += third);
+        }
+        Ok(m)
+    }
+
     /// Lumped masses for a given total mass (kg), spread with uniform density.
     pub fn lumped_masses_from_total_mass(&self, total_mass: Real) -> Result<Vec<Real>, MeshError> {
         if !total_mass.is_finite() || total_mass <= 0.0 {
@@ -395,6 +466,29 @@ mod tests {
         assert!((masses[0] - 1.0).abs() < 1e-15); // two triangles of mass 1.5, a third each
         assert!(m.lumped_masses_from_density(0.0).is_err());
         assert!(m.lumped_masses_from_total_mass(Real::NAN).is_err());
+        // Per-triangle densities: the second triangle three times as dense.
+        let masses = m.lumped_masses_from_densities(&[1.0, 3.0]).unwrap();
+        assert_eq!(masses, vec![4.0 / 3.0, 1.0 / 3.0, 4.0 / 3.0, 1.0]);
+        assert!(m.lumped_masses_from_densities(&[1.0]).is_err());
+        assert!(m.lumped_masses_from_densities(&[1.0, -1.0]).is_err());
+    }
+
+    #[test]
+    fn region_tags_need_one_per_triangle_and_a_name_each() {
+        let mut m = square();
+        assert!(m.region_tags().is_empty());
+        let e = m.set_regions(vec![0], vec!["a".into()]).unwrap_err();
+        assert_eq!(e.to_string(), "regions: 1 tags for 2 triangles");
+        let e = m
+            .set_regions(vec![0, 2], vec!["a".into(), "b".into()])
+            .unwrap_err();
+        assert!(e.to_string().contains("triangle 1 has tag 2"), "{e}");
+        m.set_regions(vec![0, 1], vec!["soft".into(), "bone".into()])
+            .unwrap();
+        assert_eq!(
+            (m.region_tags(), &m.region_names()[1][..]),
+            (&[0, 1][..], "bone")
+        );
     }
 
     #[test]

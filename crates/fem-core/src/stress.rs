@@ -14,7 +14,7 @@
 //! undefined at `J <= 0` (Neo-Hookean), it is not finite. Vertex averages skip non-finite
 //! element values.
 
-use crate::energy::Energy;
+use crate::energy::{Energy, EnergyOf};
 use crate::material::PlaneModel;
 use crate::math::{Mat2, Real, Vec2};
 use crate::mesh::Mesh;
@@ -108,12 +108,24 @@ pub struct ElementStress {
     pub principal: (Real, Real),
     /// `det F`.
     pub det_f: Real,
+    /// Principal nominal (Biot) strains `s_i - 1`, with `s_i` the singular values of `F`
+    /// (the principal stretches), largest first; the smaller one is the largest compression
+    /// when it is negative.
+    pub strain: (Real, Real),
+}
+
+/// The principal nominal strains of `F` (see [`ElementStress::strain`]): the square roots of
+/// the eigenvalues of `C = F^T F`, minus one, largest first.
+pub fn principal_strains(f: &Mat2) -> (Real, Real) {
+    let c = f.transpose() * f;
+    let (big, small) = principal(&c);
+    (big.max(0.0).sqrt() - 1.0, small.max(0.0).sqrt() - 1.0)
 }
 
 /// The stress of every element at positions `x`, in triangle order, into `out`.
-pub fn populate_element_stress<E: Energy>(
+pub fn populate_element_stress<M: EnergyOf>(
     mesh: &Mesh,
-    energy: &E,
+    energy: &M,
     x: &[Vec2],
     formula: VonMisesFormula,
     out: &mut Vec<ElementStress>,
@@ -121,6 +133,7 @@ pub fn populate_element_stress<E: Energy>(
     out.clear();
     out.extend(mesh.elements().iter().enumerate().map(|(t, el)| {
         let f = el.deformation_gradient(mesh.gather(t, x));
+        let energy = energy.energy_of(t);
         let sigma = energy.cauchy(&f);
         let sigma_zz = formula.sigma_zz(energy, &f);
         ElementStress {
@@ -129,6 +142,7 @@ pub fn populate_element_stress<E: Energy>(
             von_mises: von_mises(&sigma, sigma_zz),
             principal: principal(&sigma),
             det_f: f.determinant(),
+            strain: principal_strains(&f),
         }
     }));
 }

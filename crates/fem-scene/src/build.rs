@@ -7,7 +7,7 @@
 
 use std::path::Path;
 
-use fem_core::energy::{AnyEnergy, Energy};
+use fem_core::energy::{AnyEnergy, ElementEnergies, Energy};
 use fem_core::math::{Real, Vec2};
 use fem_core::mesh::Mesh;
 use fem_core::stress::VonMisesFormula;
@@ -213,6 +213,135 @@ pub fn lame(scene: &LoadedScene) -> Result<Lame, SceneError> {
     Ok(material.lame(m.plane))
 }
 
+/// The material of one region of the body (see [`material_regions`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct RegionMaterial {
+    /// The region's name (`material.name` for the base).
+    pub name: String,
+    /// Young's modulus, Pa.
+    pub youngs_modulus: Real,
+    /// Poisson ratio.
+    pub poisson_ratio: Real,
+    /// Density, kg/m^3 (a base material given by its total mass gets the density that
+    /// makes the body weigh it).
+    pub density: Real,
+}
+
+/// The body's materials: region 0 is `[material]`, region `k` the `k`-th `[[regions]]` entry.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MaterialRegions {
+    /// Each region's material.
+    pub materials: Vec<RegionMaterial>,
+    /// The region of each triangle.
+    pub tags: Vec<u32>,
+}
+
+impl MaterialRegions {
+    /// The density of each triangle, kg/m^3.
+    pub fn element_densities(&self) -> Vec<Real> {
+        let d: Vec<Real> = self.materials.iter().map(|m| m.density).collect();
+        self.tags.iter().map(|&t| d[t as usize]).collect()
+    }
+}
+
+/// The region of every triangle and every region's material. A `[[regions]]` entry claims
+/// the triangles whose rest centroid lies inside its polygon (even-odd rule) or whose mesh
+/// region is one of its `mesh_regions`; a later entry overrides an earlier one. Errors: an
+/// entry that claims no triangle, a mesh region the mesh does not have, or a total mass
+/// smaller than the regions with their own density already weigh.
+pub fn material_regions(scene: &LoadedScene, mesh: &Mesh) -> Result<MaterialRegions, SceneError> {
+    let s = &scene.scene;
+    let m = &s.material;
+    let n = mesh.n_triangles();
+    let mut tags = vec![0u32; n];
+    let centroids: Vec<Vec2> = (0..n)
+        .map(|t| mesh.gather(t, mesh.vertices()).iter().sum::<Vec2>() / 3.0)
+        .collect();
+    for (i, r) in s.regions.iter().enumerate() {
+        let field = format!("regions.{i}");
+        let k = i as u32 + 1;
+        let mut claimed = 0usize;
+        if let Some(poly) = &r.polygon {
+            for (t, c) in centroids.iter().enumerate() {
+                if fem_mesh::types::point_in_ring([c.x, c.y], poly) {
+                    tags[t] = k;
+                    claimed += 1;
+                }
+            }
+        } else {
+            let names = mesh.region_names();
+            for want in &r.mesh_regions {
+                if !names.iter().any(|n| n == want) {
+                    return Err(scene.error(
+                        &format!("{field}.mesh_regions"),
+                        format!("{want:?}"),
+                        &format!(
+                            "is not a region of the mesh (it has: {})",
+                            if names.is_empty() {
+                                "none".to_string()
+                            } else {
+                                names.join(", ")
+                            }
+                        ),
+                    ));
+                }
+            }
+            for (t, &tag) in mesh.region_tags().iter().enumerate() {
+                if r.mesh_regions.contains(&names[tag as usize]) {
+                    tags[t] = k;
+                    claimed += 1;
+                }
+            }
+        }
+        if claimed == 0 {
+            return Err(scene.error(&field, &r.name, "contains no element (rest centroid)"));
+        }
+    }
+    let mut area = vec![0.0; s.regions.len() + 1];
+    for (t, el) in mesh.elements().iter().enumerate() {
+        area[tags[t] as usize] += el.area;
+    }
+    let base_density = match (m.density, m.total_mass) {
+        (Some(d), _) => d,
+        (None, Some(total)) => {
+            // Regions with their own density weigh what they weigh; the rest shares the
+            // remaining mass uniformly.
+            let own: Real = (s.regions.iter().zip(&area[1..]))
+                .filter_map(|(r, a)| r.density.map(|d| d * a))
+                .sum();
+            let rest: Real = area[0]
+                + (s.regions.iter().zip(&area[1..]))
+                    .filter(|(r, _)| r.density.is_none())
+                    .map(|(_, a)| a)
+                    .sum::<Real>();
+            if own >= total || rest <= 0.0 {
+                return Err(scene.error(
+                    "material.total_mass",
+                    total,
+                    &format!(
+                        "must exceed the {own:.4} kg the regions with their own density weigh"
+                    ),
+                ));
+            }
+            (total - own) / rest
+        }
+        (None, None) => unreachable!("validated: one of total_mass and density is given"),
+    };
+    let mut materials = vec![RegionMaterial {
+        name: m.name().to_string(),
+        youngs_modulus: m.youngs_modulus,
+        poisson_ratio: m.poisson_ratio,
+        density: base_density,
+    }];
+    materials.extend(s.regions.iter().map(|r| RegionMaterial {
+        name: r.name.clone(),
+        youngs_modulus: r.youngs_modulus.unwrap_or(m.youngs_modulus),
+        poisson_ratio: r.poisson_ratio.unwrap_or(m.poisson_ratio),
+        density: r.density.unwrap_or(base_density),
+    }));
+    Ok(MaterialRegions { materials, tags })
+}
+
 /// The von Mises formula matching the scene's plane model.
 pub fn von_mises_formula(scene: &LoadedScene) -> VonMisesFormula {
     VonMisesFormula::from(scene.scene.material.plane)
@@ -253,12 +382,32 @@ fn build_unloaded_model<E: Energy>(
 ) -> Result<Model<E>, SceneError> {
     let s = &scene.scene;
     let err = solver_err(scene);
-    let mut model = match (s.material.total_mass, s.material.density) {
-        (Some(total), _) => Model::with_total_mass(mesh, energy, total),
-        (None, Some(density)) => Model::with_density(mesh, energy, density),
-        (None, None) => unreachable!("validated: one of total_mass and density is given"),
-    }
-    .map_err(&err)?;
+    let mut model = if s.regions.is_empty() {
+        match (s.material.total_mass, s.material.density) {
+            (Some(total), _) => Model::with_total_mass(mesh, energy, total),
+            (None, Some(density)) => Model::with_density(mesh, energy, density),
+            (None, None) => unreachable!("validated: one of total_mass and density is given"),
+        }
+        .map_err(&err)?
+    } else {
+        let regions = material_regions(scene, &mesh)?;
+        let mut energies = vec![energy.clone()];
+        for (k, r) in regions.materials.iter().enumerate().skip(1) {
+            let field = format!("regions.{}", k - 1);
+            let lame = Material::new(r.youngs_modulus, r.poisson_ratio, 1.0)
+                .map_err(|e| scene.error(&field, &r.name, &e.to_string()))?
+                .lame(s.material.plane);
+            let e = energy.with_lame(lame);
+            energies.push(e.map_err(|e| scene.error(&field, &r.name, &e.to_string()))?);
+        }
+        let densities = regions.element_densities();
+        let masses = mesh
+            .lumped_masses_from_densities(&densities)
+            .map_err(|e| SceneError::Scene(format!("{}: {e}", scene.origin)))?;
+        let energies = ElementEnergies::new(energies, regions.tags)
+            .map_err(|e| SceneError::Scene(format!("{}: regions: {e}", scene.origin)))?;
+        Model::with_regions(mesh, energies, masses).map_err(&err)?
+    };
     for (i, r) in s.pinned.iter().enumerate() {
         let region = Region::in_box(v2(r.min), v2(r.max));
         if region

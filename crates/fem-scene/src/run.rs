@@ -359,7 +359,7 @@ impl Recorder {
         let mesh = model.mesh();
         populate_element_stress(
             mesh,
-            model.energy(),
+            model.energies(),
             &state.x,
             self.formula,
             &mut self.stress,

@@ -34,8 +34,11 @@ pub struct Scene {
     pub description: String,
     /// The mesh.
     pub mesh: MeshSpec,
-    /// Material parameters.
+    /// Material parameters (of the whole body, or of what no region claims).
     pub material: MaterialSpec,
+    /// Regions of the body with their own material (bones inside soft tissue).
+    #[serde(default)]
+    pub regions: Vec<MaterialRegionSpec>,
     /// The elastic energy. Default `neo-hookean`.
     #[serde(default = "default_energy")]
     pub energy: EnergyKind,
@@ -222,6 +225,42 @@ pub struct MaterialSpec {
     /// `plane-strain` (default; the paper's Lamé parameters) or `plane-stress`.
     #[serde(default)]
     pub plane: PlaneModel,
+    /// The name of this material in outputs when the scene has `[[regions]]`. Default `body`.
+    #[serde(default)]
+    pub name: Option<String>,
+}
+
+impl MaterialSpec {
+    /// The base material's name in outputs (`name`, or `body`).
+    pub fn name(&self) -> &str {
+        self.name.as_deref().unwrap_or("body")
+    }
+}
+
+/// A `[[regions]]` entry: elements with their own material, selected by a polygon of rest
+/// positions or by the names of regions the mesh carries. Unset parameters are the base
+/// material's.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MaterialRegionSpec {
+    /// The region's name in outputs (unique, not the base material's).
+    pub name: String,
+    /// The elements whose rest centroid lies inside this polygon (m, at least 3 points).
+    #[serde(default)]
+    pub polygon: Option<Vec<[f64; 2]>>,
+    /// The elements of these regions of the mesh (mesh JSON `region_names`, the built-in
+    /// body's bones).
+    #[serde(default)]
+    pub mesh_regions: Vec<String>,
+    /// Young's modulus E, Pa (> 0). Default: the base material's.
+    #[serde(default)]
+    pub youngs_modulus: Option<f64>,
+    /// Poisson ratio nu, in (-1, 0.5). Default: the base material's.
+    #[serde(default)]
+    pub poisson_ratio: Option<f64>,
+    /// Density, kg/m^3 (> 0). Default: the base material's.
+    #[serde(default)]
+    pub density: Option<f64>,
 }
 
 /// A box of rest positions, m (closed, with a 1e-9 m margin).
@@ -640,6 +679,8 @@ impl LoadedScene {
             }
         }
 
+        self.validate_regions()?;
+
         let v = &s.solver;
         if !v.kind.capabilities().contact && (s.ground.is_some() || !s.obstacles.is_empty()) {
             let with: Vec<&str> = fem_solvers::SolverKind::ALL
@@ -873,6 +914,85 @@ impl LoadedScene {
                     fem_solvers::limits::MAX_RECORDED_FRAMES
                 ),
             ));
+        }
+        Ok(())
+    }
+
+    fn validate_regions(&self) -> Result<(), SceneError> {
+        let s = &self.scene;
+        if let Some(name) = &s.material.name
+            && name.trim().is_empty()
+        {
+            return Err(self.error("material.name", "\"\"", "must not be empty"));
+        }
+        let mut names = vec![s.material.name()];
+        for (i, r) in s.regions.iter().enumerate() {
+            let f = format!("regions.{i}");
+            if r.name.trim().is_empty() || names.contains(&r.name.as_str()) {
+                return Err(self.error(
+                    &format!("{f}.name"),
+                    format!("{:?}", r.name),
+                    "must be non-empty and differ from material.name and the other regions' names",
+                ));
+            }
+            names.push(&r.name);
+            match (&r.polygon, r.mesh_regions.is_empty()) {
+                (Some(_), false) | (None, true) => {
+                    return Err(self.error(
+                        &format!("{f}.polygon"),
+                        if r.polygon.is_some() {
+                            "(given)"
+                        } else {
+                            "(missing)"
+                        },
+                        "give exactly one of polygon and mesh_regions",
+                    ));
+                }
+                (Some(poly), true) => {
+                    if poly.len() < 3 {
+                        return Err(self.error(
+                            &format!("{f}.polygon"),
+                            format!("{} points", poly.len()),
+                            "needs at least 3 points",
+                        ));
+                    }
+                    if let Some(k) = poly.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
+                        return Err(self.error(
+                            &format!("{f}.polygon.{k}"),
+                            fmt_point(poly[k]),
+                            "must have finite coordinates",
+                        ));
+                    }
+                }
+                (None, false) => {}
+            }
+            if let Some(e) = r.youngs_modulus
+                && !(e.is_finite() && e > 0.0)
+            {
+                return Err(self.error(
+                    &format!("{f}.youngs_modulus"),
+                    e,
+                    "must be a finite number > 0 (Pa)",
+                ));
+            }
+            if let Some(nu) = r.poisson_ratio
+                && !(nu > -1.0 && nu < 0.5)
+            {
+                return Err(self.error(
+                    &format!("{f}.poisson_ratio"),
+                    nu,
+                    "must lie in the open interval (-1, 0.5)",
+                ));
+            }
+            if let Some(d) = r.density
+                && !(d.is_finite() && d > 0.0)
+            {
+                return Err(self.error(
+                    &format!("{f}.density"),
+                    d,
+                    "must be a finite number > 0 (kg/m^3)",
+                ));
+            }
         }
         Ok(())
     }

@@ -61,7 +61,7 @@ pub fn energies<E: Energy>(
         }
     }
     let elastic = kernel::elastic_energy(
-        model.energy(),
+        model.energies(),
         &model.elements,
         &state.x,
         &mut scratch.element,

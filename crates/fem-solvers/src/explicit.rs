@@ -166,7 +166,7 @@ impl Stepper for ExplicitStepper {
         let (dt, t) = (self.params.dt, state.t);
 
         let inv = kernel::forces(
-            model.energy(),
+            model.energies(),
             &model.blocks,
             model.mesh(),
             &state.x,

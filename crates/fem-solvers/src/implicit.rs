@@ -204,7 +204,7 @@ impl Stepper for ImplicitStepper {
         self.x_new.copy_from_slice(&self.target);
         let potential = Potential {
             mesh: model.mesh(),
-            energy: model.energy(),
+            energy: model.energies(),
             masses: model.masses(),
             weight: 1.0 / (h * h),
             target: &self.target,

@@ -19,7 +19,7 @@
 
 use std::sync::Mutex;
 
-use fem_core::energy::Energy;
+use fem_core::energy::{ElementEnergies, Energy};
 use fem_core::math::{LANES, Lanes, Mat2, Mat2Lanes, Real, Vec2};
 use fem_core::mesh::Mesh;
 use fem_core::par::prelude::*;
@@ -40,17 +40,30 @@ pub(crate) struct PackedElement {
     pub area: Real,
     /// Vertex indices (counter-clockwise).
     pub idx: [u32; 3],
+    /// The element's region: the index of its energy in [`ElementEnergies::energies`].
+    pub region: u32,
 }
 
-/// Pack the mesh's elements in triangle order.
-pub(crate) fn pack(mesh: &Mesh) -> Vec<PackedElement> {
+impl PackedElement {
+    /// The element's energy.
+    #[inline(always)]
+    pub fn energy<'a, E: Energy>(&self, energies: &'a ElementEnergies<E>) -> &'a E {
+        &energies.energies()[self.region as usize]
+    }
+}
+
+/// Pack the mesh's elements in triangle order; `tags` are the elements' regions (empty: all
+/// in region 0).
+pub(crate) fn pack(mesh: &Mesh, tags: &[u32]) -> Vec<PackedElement> {
     mesh.triangles()
         .iter()
         .zip(mesh.elements())
-        .map(|(t, e)| PackedElement {
+        .enumerate()
+        .map(|(k, (t, e))| PackedElement {
             dm_inv: e.dm_inv,
             area: e.area,
             idx: *t,
+            region: tags.get(k).copied().unwrap_or(0),
         })
         .collect()
 }
@@ -143,7 +156,15 @@ pub(crate) struct ElementBlock {
     pub area: Lanes,
     /// `idx[corner][lane]`: vertex indices.
     pub idx: [[u32; LANES]; 3],
+    /// The region of every lane, or [`MIXED`] when they differ (a block on a material
+    /// interface evaluates lane by lane).
+    pub region: u32,
+    /// The region of each lane.
+    pub regions: [u32; LANES],
 }
+
+/// [`ElementBlock::region`] of a block whose lanes lie in different regions.
+pub(crate) const MIXED: u32 = u32::MAX;
 
 // A scatter-plan chunk is a whole number of blocks.
 const _: () = assert!(PLAN_CHUNK.is_multiple_of(LANES));
@@ -158,6 +179,12 @@ pub(crate) fn pack_blocks(elements: &[PackedElement]) -> Vec<ElementBlock> {
                 dm_inv: Mat2Lanes::from_mats(&std::array::from_fn(|l| el(l).dm_inv)),
                 area: Lanes(std::array::from_fn(|l| el(l).area)),
                 idx: std::array::from_fn(|k| std::array::from_fn(|l| el(l).idx[k])),
+                region: if c.iter().all(|e| e.region == c[0].region) {
+                    c[0].region
+                } else {
+                    MIXED
+                },
+                regions: std::array::from_fn(|l| el(l).region),
             }
         })
         .collect()
@@ -174,7 +201,11 @@ struct BlockForces {
 /// Each lane performs exactly the operations of the scalar [`deformation_gradient`] and
 /// [`energy_gradients`].
 #[inline(always)]
-fn block_forces<E: Energy>(energy: &E, b: &ElementBlock, x: &[Vec2]) -> BlockForces {
+fn block_forces<E: Energy>(
+    energies: &ElementEnergies<E>,
+    b: &ElementBlock,
+    x: &[Vec2],
+) -> BlockForces {
     // Each vertex is read as one 16-byte pair, then the pairs are split into x and y lanes.
     let gather = |idx: &[u32; LANES]| {
         let mut px = [0.0; LANES];
@@ -199,7 +230,18 @@ fn block_forces<E: Energy>(energy: &E, b: &ElementBlock, x: &[Vec2]) -> BlockFor
         e1x * d01 + e2x * d11,
         e1y * d01 + e2y * d11,
     ]);
-    let p = energy.pk1_lanes(&f);
+    let p = if b.region != MIXED {
+        energies.energies()[b.region as usize].pk1_lanes(&f)
+    } else {
+        // Lane `l` of `pk1_lanes` is bit-identical to `pk1` of that lane (the trait's
+        // contract), so a mixed block gives the same bits as a uniform one would.
+        let mut p = Mat2Lanes::default();
+        for l in 0..LANES {
+            let e = &energies.energies()[b.regions[l] as usize];
+            p.set_lane(l, &e.pk1(&f.lane(l)));
+        }
+        p
+    };
     let (p00, p10, p01, p11) = (p.m00(), p.m10(), p.m01(), p.m11());
     let a = b.area;
     let f1 = [
@@ -261,7 +303,7 @@ impl LaneInversion {
 /// element order (`element` counted from the first block).
 #[inline(always)]
 fn blocks_forces<E: Energy>(
-    energy: &E,
+    energy: &ElementEnergies<E>,
     blocks: &[ElementBlock],
     n_elements: usize,
     x: &[Vec2],
@@ -289,7 +331,7 @@ fn blocks_forces<E: Energy>(
 /// Elastic forces `f = -dE/dx` into `f` (overwritten), serial scatter in element order.
 /// `blocks` are the mesh's triangles in triangle order ([`pack_blocks`]).
 pub(crate) fn forces_serial<E: Energy>(
-    energy: &E,
+    energy: &ElementEnergies<E>,
     blocks: &[ElementBlock],
     mesh: &Mesh,
     x: &[Vec2],
@@ -315,7 +357,7 @@ pub(crate) fn forces_serial<E: Energy>(
 /// order. Every vertex thus sums the same terms in the same order from the same zero as the
 /// serial scatter.
 pub(crate) fn forces<E: Energy>(
-    energy: &E,
+    energy: &ElementEnergies<E>,
     blocks: &[ElementBlock],
     mesh: &Mesh,
     x: &[Vec2],
@@ -356,7 +398,7 @@ pub(crate) fn forces<E: Energy>(
 /// Total elastic energy `sum_e a_e psi(F_e)`, summed in element order (parallel evaluation into
 /// `buf`, serial sum: the same bits for any thread count).
 pub(crate) fn elastic_energy<E: Energy>(
-    energy: &E,
+    energy: &ElementEnergies<E>,
     elements: &[PackedElement],
     x: &[Vec2],
     buf: &mut Vec<Real>,
@@ -366,7 +408,7 @@ pub(crate) fn elastic_energy<E: Energy>(
         .zip(elements.par_chunks(ELEMENT_CHUNK))
         .for_each(|(out, els)| {
             for (o, el) in out.iter_mut().zip(els) {
-                *o = el.area * energy.psi(&deformation_gradient(el, x));
+                *o = el.area * el.energy(energy).psi(&deformation_gradient(el, x));
             }
         });
     buf.iter().fold(0.0, |acc, &e| acc + e)
@@ -381,10 +423,15 @@ mod tests {
     use fem_core::material::Material;
 
     /// The plain per-element loop the batched kernel must reproduce bit for bit.
-    fn reference<E: Energy>(energy: &E, elements: &[PackedElement], x: &[Vec2]) -> Vec<Vec2> {
+    fn reference<E: Energy>(
+        energies: &ElementEnergies<E>,
+        elements: &[PackedElement],
+        x: &[Vec2],
+    ) -> Vec<Vec2> {
         let mut f = vec![Vec2::zeros(); x.len()];
         for el in elements {
-            let (g1, g2) = energy_gradients(el, &energy.pk1(&deformation_gradient(el, x)));
+            let p = el.energy(energies).pk1(&deformation_gradient(el, x));
+            let (g1, g2) = energy_gradients(el, &p);
             let (f1, f2) = (-g1, -g2);
             let [i0, i1, i2] = el.idx.map(|i| i as usize);
             f[i0] += -(f1 + f2);
@@ -398,8 +445,9 @@ mod tests {
         f.iter().map(|v| [v.x.to_bits(), v.y.to_bits()]).collect()
     }
 
-    /// Every energy, every instruction set this machine has, 1, 2 and 3 threads: the same bits
-    /// as the scalar per-element loop.
+    /// Every energy, every instruction set this machine has, 1, 2 and 3 threads, one material
+    /// and two (blocks of one region and blocks across the interface): the same bits as the
+    /// scalar per-element loop.
     #[test]
     fn batched_and_parallel_forces_equal_the_per_element_loop_bit_for_bit() {
         // 2 x 47 x 23 = 2162 triangles: two scatter-plan chunks and a partial last block.
@@ -408,8 +456,45 @@ mod tests {
         let lame = Material::new(1000.0, 0.3, 1.0)
             .unwrap()
             .lame(PlaneModel::PlaneStrain);
-        let elements = pack(&mesh);
-        let blocks = pack_blocks(&elements);
+        let stiff = Material::new(3.0e6, 0.2, 1.0)
+            .unwrap()
+            .lame(PlaneModel::PlaneStrain);
+        // Region 1: triangles whose centroid lies in a disc, so some blocks straddle it.
+        let tags: Vec<u32> = (0..mesh.n_triangles())
+            .map(|t| {
+                let c = mesh.gather(t, mesh.vertices()).iter().sum::<Vec2>() / 3.0;
+                u32::from((c - Vec2::new(2.0, 0.5)).norm() < 0.4)
+            })
+            .collect();
+        for tagged in [false, true] {
+            let tags = if tagged { tags.clone() } else { Vec::new() };
+            let elements = pack(&mesh, &tags);
+            let blocks = pack_blocks(&elements);
+            let mixed = blocks.iter().filter(|b| b.region == MIXED).count();
+            let stiff_blocks = blocks.iter().filter(|b| b.region == 1).count();
+            assert_eq!((mixed > 0, stiff_blocks > 0), (tagged, tagged));
+            for kind in EnergyKind::ALL {
+                let base = kind.build(lame).unwrap();
+                let energies = if tagged {
+                    ElementEnergies::new(
+                        vec![base.clone(), base.with_lame(stiff).unwrap()],
+                        tags.clone(),
+                    )
+                    .unwrap()
+                } else {
+                    ElementEnergies::uniform(base)
+                };
+                check_bits(&energies, &mesh, &elements, &blocks);
+            }
+        }
+    }
+
+    fn check_bits<E: Energy>(
+        energies: &ElementEnergies<E>,
+        mesh: &Mesh,
+        elements: &[PackedElement],
+        blocks: &[ElementBlock],
+    ) {
         let x: Vec<Vec2> = mesh
             .vertices()
             .iter()
@@ -427,24 +512,22 @@ mod tests {
                     .unwrap()
             })
             .into();
-        for kind in EnergyKind::ALL {
-            let energy = kind.build(lame).unwrap();
-            let want = bits(&reference(&energy, &elements, &x));
-            for isa in Isa::supported() {
-                let mut serial = vec![Vec2::zeros(); x.len()];
-                let inv = forces_serial(&energy, &blocks, &mesh, &x, &mut serial, isa);
-                assert_eq!(bits(&serial), want, "{kind:?}, {isa}");
-                assert_eq!(inv.inverted, 0);
-                assert_eq!(inv.min_det_f, min);
-                for pool in &pools {
-                    let mut par = vec![Vec2::zeros(); x.len()];
-                    let mut slots = Vec::new();
-                    let pinv = pool
-                        .install(|| forces(&energy, &blocks, &mesh, &x, &mut par, &mut slots, isa));
-                    let threads = pool.current_num_threads();
-                    assert_eq!(bits(&par), want, "{kind:?}, {isa}, {threads} threads");
-                    assert_eq!(pinv, inv);
-                }
+        let kind = energies.base().name();
+        let want = bits(&reference(energies, elements, &x));
+        for isa in Isa::supported() {
+            let mut serial = vec![Vec2::zeros(); x.len()];
+            let inv = forces_serial(energies, blocks, mesh, &x, &mut serial, isa);
+            assert_eq!(bits(&serial), want, "{kind:?}, {isa}");
+            assert_eq!(inv.inverted, 0);
+            assert_eq!(inv.min_det_f, min);
+            for pool in &pools {
+                let mut par = vec![Vec2::zeros(); x.len()];
+                let mut slots = Vec::new();
+                let pinv =
+                    pool.install(|| forces(energies, blocks, mesh, &x, &mut par, &mut slots, isa));
+                let threads = pool.current_num_threads();
+                assert_eq!(bits(&par), want, "{kind:?}, {isa}, {threads} threads");
+                assert_eq!(pinv, inv);
             }
         }
     }

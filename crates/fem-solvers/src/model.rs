@@ -14,7 +14,7 @@
 
 use std::sync::atomic::{AtomicU64, Ordering};
 
-use fem_core::energy::Energy;
+use fem_core::energy::{ElementEnergies, Energy, EnergyOf};
 use fem_core::math::{Mat2, Mat6, Real, Vec2, exp, ln_1p};
 use fem_core::mesh::Mesh;
 use fem_core::simd::Isa;
@@ -44,7 +44,8 @@ pub const STANDARD_GRAVITY: Real = 9.8;
 #[derive(Clone, Debug)]
 pub struct Model<E: Energy> {
     mesh: Mesh,
-    energy: E,
+    /// The energy of each element (one per region; a homogeneous body has one).
+    energies: ElementEnergies<E>,
     masses: Vec<Real>,
     inv_masses: Vec<Real>,
     /// Pinned and scheduled vertices (the boundary conditions).
@@ -75,6 +76,24 @@ impl<E: Energy> Model<E> {
     /// A model with the given lumped vertex masses (kg per unit thickness, one per vertex,
     /// finite and > 0), no gravity, no boundary conditions and no obstacles.
     pub fn new(mesh: Mesh, energy: E, masses: Vec<Real>) -> Result<Self, SolverError> {
+        Self::with_regions(mesh, ElementEnergies::uniform(energy), masses)
+    }
+
+    /// A model whose elements have their own energies (one per region, see
+    /// [`ElementEnergies`]: a bone inside soft tissue), with the given lumped vertex masses
+    /// ([`Mesh::lumped_masses_from_densities`] spreads per-element densities).
+    pub fn with_regions(
+        mesh: Mesh,
+        energies: ElementEnergies<E>,
+        masses: Vec<Real>,
+    ) -> Result<Self, SolverError> {
+        if let Err(message) = energies.check_len(mesh.n_triangles()) {
+            return Err(SolverError::invalid(
+                "regions",
+                message,
+                "need one tag per triangle",
+            ));
+        }
         if masses.len() != mesh.n_vertices() {
             return Err(SolverError::invalid(
                 "masses.len()",
@@ -91,16 +110,24 @@ impl<E: Energy> Model<E> {
         }
         let inv_masses = masses.iter().map(|m| 1.0 / m).collect();
         // P-wave modulus of the linearised energy: d^2 psi / d F00^2 at F = I (lambda + 2 mu
-        // for every isotropic energy that linearises to linear elasticity).
-        let modulus = energy.dpk1(&Mat2::identity())[(0, 0)];
-        if !(modulus.is_finite() && modulus > 0.0) {
-            return Err(SolverError::invalid(
-                "energy",
-                format!("{} (stiffness at rest {modulus:e} Pa)", energy.name()),
-                "must have a finite stiffness > 0 at rest: check youngs_modulus and poisson_ratio",
-            ));
+        // for every isotropic energy that linearises to linear elasticity), of every region.
+        for (k, energy) in energies.energies().iter().enumerate() {
+            let m = energy.dpk1(&Mat2::identity())[(0, 0)];
+            if !(m.is_finite() && m > 0.0) {
+                let field = if k == 0 {
+                    "energy".to_string()
+                } else {
+                    format!("regions[{k}]")
+                };
+                return Err(SolverError::invalid(
+                    field,
+                    format!("{} (stiffness at rest {m:e} Pa)", energy.name()),
+                    "must have a finite stiffness > 0 at rest: check youngs_modulus and poisson_ratio",
+                ));
+            }
         }
-        let elements = pack(&mesh);
+        let modulus = energies.base().dpk1(&Mat2::identity())[(0, 0)];
+        let elements = pack(&mesh, energies.tags());
         let boundary = boundary_edges(mesh.triangles());
         let mut boundary_vertices: Vec<u32> = boundary.iter().flatten().copied().collect();
         boundary_vertices.sort_unstable();
@@ -112,7 +139,7 @@ impl<E: Energy> Model<E> {
             isa: Isa::detected(),
             elements,
             mesh,
-            energy,
+            energies,
             masses,
             inv_masses,
             base: Kinematics::default(),
@@ -429,7 +456,10 @@ impl<E: Energy> Model<E> {
                     let v = a.vertex as usize;
                     for &(t, corner) in adj.of(v) {
                         let el = &self.elements[t as usize];
-                        let p = self.energy.pk1(&deformation_gradient(el, x));
+                        let p = self
+                            .energies
+                            .energy_of(t as usize)
+                            .pk1(&deformation_gradient(el, x));
                         f += (p * corner_gradient(el, corner)) * el.area;
                     }
                     f -= self.gravity * self.masses[v];
@@ -502,9 +532,15 @@ impl<E: Energy> Model<E> {
         &self.mesh
     }
 
-    /// The energy.
+    /// The body's energy: that of region 0, the whole body's when it is homogeneous (see
+    /// [`Model::energies`] for a body of several materials).
     pub fn energy(&self) -> &E {
-        &self.energy
+        self.energies.base()
+    }
+
+    /// The energy of every element ([`EnergyOf::energy_of`]), one per region.
+    pub fn energies(&self) -> &ElementEnergies<E> {
+        &self.energies
     }
 
     /// Lumped vertex masses, kg.
@@ -563,7 +599,9 @@ impl<E: Energy> Model<E> {
         self.ground.is_some() || !self.obstacles.is_empty()
     }
 
-    /// The P-wave modulus of the linearised energy at rest, Pa (`lambda + 2 mu`).
+    /// The P-wave modulus of the linearised energy at rest, Pa (`lambda + 2 mu`), of the base
+    /// material (region 0: the body's own, the soft tissue of a body with bones). Contact
+    /// stiffness defaults scale with it.
     pub fn p_wave_modulus(&self) -> Real {
         self.modulus
     }
@@ -590,10 +628,14 @@ impl<E: Energy> Model<E> {
                 area_around[i as usize] += el.area;
             }
         }
-        let dpdf = self.energy.dpk1(&Mat2::identity());
+        // One rest tangent per region: the bound is the stiffest element's, so a stiff bone
+        // region sets the step of the whole body.
+        let dpdf: Vec<_> = (self.energies.energies().iter())
+            .map(|e| e.dpk1(&Mat2::identity()))
+            .collect();
         let mut lambda_max: Real = 0.0;
         for (tri, el) in self.mesh.elements().iter().zip(&self.elements) {
-            let k = tri.stiffness(&dpdf);
+            let k = tri.stiffness(&dpdf[el.region as usize]);
             let mut scale = [0.0; 6];
             for (a, &i) in el.idx.iter().enumerate() {
                 let i = i as usize;

@@ -38,7 +38,7 @@ use faer::{Conj, MatMut, Par, Side};
 use fem_core::assembly::{
     Scratch, Stiffness, Tangent, elastic_energy, populate_forces, populate_stiffness,
 };
-use fem_core::energy::Energy;
+use fem_core::energy::{ElementEnergies, Energy};
 use fem_core::math::{Real, Vec2};
 use fem_core::mesh::Mesh;
 
@@ -177,7 +177,7 @@ impl std::fmt::Debug for NewtonSolver {
 /// The inputs of one solve that do not change during it.
 pub(crate) struct Potential<'a, E: Energy> {
     pub mesh: &'a Mesh,
-    pub energy: &'a E,
+    pub energy: &'a ElementEnergies<E>,
     pub masses: &'a [Real],
     /// Inertia weight `1/h^2` (0 for statics).
     pub weight: Real,
@@ -612,8 +612,7 @@ impl NewtonSolver {
         // potential has a floor too (eps times its terms, and `psi`'s terms are of the order of
         // the modulus, not of `psi`): where a trial's change of potential is below it, the line
         // search accepts the trial if it lowers the residual instead.
-        let modulus = p.energy.dpk1(&fem_core::math::Mat2::identity())[(0, 0)].abs();
-        let psi_scale = modulus * p.mesh.area();
+        let psi_scale = potential_scale(p.mesh, p.energy);
         let size = body_size(p.mesh.vertices());
         let mut at_floor = false;
         while residual > target && !at_floor && report.iterations < params.max_iterations {
@@ -747,4 +746,16 @@ fn body_size(x: &[Vec2]) -> Real {
         hi = hi.sup(p);
     }
     (hi - lo).norm()
+}
+
+/// The scale of the elastic potential's terms, `sum_e M_e a_e` with `M_e` the rest P-wave
+/// modulus of element `e`'s region (`psi`'s terms are of that order, whatever `psi` is): the
+/// size its round-off is measured against.
+fn potential_scale<E: Energy>(mesh: &Mesh, energies: &ElementEnergies<E>) -> Real {
+    let moduli: Vec<Real> = (energies.energies().iter())
+        .map(|e| e.dpk1(&fem_core::math::Mat2::identity())[(0, 0)].abs())
+        .collect();
+    (mesh.elements().iter().enumerate())
+        .map(|(t, el)| moduli[energies.tag(t) as usize] * el.area)
+        .sum()
 }

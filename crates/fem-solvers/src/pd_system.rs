@@ -26,7 +26,7 @@ use faer::sparse::linalg::cholesky::{
 };
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, MatMut, Par, Side};
-use fem_core::energy::Energy;
+use fem_core::energy::{ElementEnergies, Energy};
 use fem_core::math::{Mat2, Real, Vec2, vec_index};
 use fem_core::mesh::Mesh;
 
@@ -39,6 +39,17 @@ pub(crate) fn rest_lame<E: Energy>(energy: &E) -> (Real, Real) {
     let lambda = d[(vec_index(0, 0), vec_index(1, 1))];
     let mu = 0.5 * (d[(vec_index(0, 0), vec_index(0, 0))] - lambda);
     (mu, lambda)
+}
+
+/// `(mu, lambda)` of every element's region ([`rest_lame`] of its energy), in triangle order.
+pub(crate) fn element_lame<E: Energy>(
+    energies: &ElementEnergies<E>,
+    n_triangles: usize,
+) -> Vec<(Real, Real)> {
+    let per_region: Vec<(Real, Real)> = energies.energies().iter().map(rest_lame).collect();
+    (0..n_triangles)
+        .map(|t| per_region[energies.tag(t) as usize])
+        .collect()
 }
 
 /// `A = M / h^2 + L` over the free vertices, factorised; see the module docs.

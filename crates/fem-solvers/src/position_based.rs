@@ -63,7 +63,7 @@
 //! `rest_threshold`, and PBD's `stiffness` or XPBD's `compliance` and `xpbd_form`
 //! (`"consistent"` | `"literal"`), `xpbd_schedule` and `xpbd_lambda_reset`.
 
-use fem_core::energy::Energy;
+use fem_core::energy::{ElementEnergies, Energy};
 use fem_core::math::{Real, Vec2, exp};
 use fem_core::mesh::VertexAdjacency;
 use fem_core::par::prelude::*;
@@ -348,7 +348,7 @@ struct Projection {
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 fn project_one<E: Energy>(
-    energy: &E,
+    energy: &ElementEnergies<E>,
     el: &PackedElement,
     x: &[Vec2],
     w: &[Real],
@@ -365,7 +365,7 @@ fn project_one<E: Energy>(
         det,
         residual2,
     };
-    let (psi, p) = energy.psi_pk1(&f);
+    let (psi, p) = el.energy(energy).psi_pk1(&f);
     if psi <= psi_threshold {
         return skip(0.0);
     }
@@ -708,7 +708,7 @@ impl Engine {
                 self.grab_lambda.fill(Vec2::zeros());
             }
             stats = self.sweep(
-                model.energy(),
+                model.energies(),
                 model.mesh().adjacency(),
                 w,
                 rule,
@@ -775,7 +775,7 @@ impl Engine {
     /// One sweep over all constraints in the configured order.
     fn sweep<E: Energy>(
         &mut self,
-        energy: &E,
+        energy: &ElementEnergies<E>,
         adjacency: &VertexAdjacency,
         w: &[Real],
         rule: Rule,
@@ -923,7 +923,7 @@ fn fill_corrections(buf: &mut Vec<Projection>, n: usize) {
 /// of [`ELEMENT_CHUNK`] elements exactly as the parallel coloured path does.
 #[allow(clippy::too_many_arguments)]
 fn serial_range<E: Energy>(
-    energy: &E,
+    energy: &ElementEnergies<E>,
     els: &[PackedElement],
     lam: &mut [Real],
     x: &mut [Vec2],

@@ -47,7 +47,7 @@ use crate::kernel::{
 };
 use crate::limits;
 use crate::model::Model;
-use crate::pd_system::{PdSystem, rest_lame};
+use crate::pd_system::{PdSystem, element_lame};
 use crate::registry::{Capabilities, Clock, Solver};
 use crate::report::StepReport;
 use crate::state::State;
@@ -154,12 +154,13 @@ impl PdStepper {
         }
         let mesh = model.mesh();
         let n = mesh.n_vertices();
-        let (mu, lambda) = rest_lame(model.energy());
-        let w_mu: Vec<Real> = mesh.elements().iter().map(|e| 2.0 * e.area * mu).collect();
-        let w_lambda: Vec<Real> = mesh
-            .elements()
-            .iter()
-            .map(|e| 2.0 * e.area * lambda)
+        // Each element's weights from its region's Lamé parameters.
+        let lame = element_lame(model.energies(), mesh.n_triangles());
+        let w_mu: Vec<Real> = (mesh.elements().iter().zip(&lame))
+            .map(|(e, &(mu, _))| 2.0 * e.area * mu)
+            .collect();
+        let w_lambda: Vec<Real> = (mesh.elements().iter().zip(&lame))
+            .map(|(e, &(_, lambda))| 2.0 * e.area * lambda)
             .collect();
         let weights: Vec<Real> = w_mu.iter().zip(&w_lambda).map(|(a, b)| a + b).collect();
         let mut kinematic = vec![false; n];
@@ -182,7 +183,7 @@ impl PdStepper {
             decay: exp(-params.damping * h),
             params,
             n_triangles: mesh.n_triangles(),
-            els: pack(mesh),
+            els: pack(mesh, model.energies().tags()),
             rhs: vec![0.0; 2 * system.n_free()],
             system,
             w_mu,

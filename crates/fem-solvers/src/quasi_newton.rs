@@ -41,7 +41,7 @@ use crate::kernel::{PackedElement, pack};
 use crate::limits;
 use crate::model::Model;
 use crate::newton::Potential;
-use crate::pd_system::{PdSystem, rest_lame};
+use crate::pd_system::{PdSystem, element_lame};
 use crate::registry::{Capabilities, Clock, Solver};
 use crate::report::StepReport;
 use crate::state::State;
@@ -190,12 +190,14 @@ impl QuasiNewtonStepper {
         }
         let mesh = model.mesh();
         let n = mesh.n_vertices();
-        let (mu, lambda) = rest_lame(model.energy());
-        let weights: Vec<Real> = mesh
-            .elements()
-            .iter()
-            .map(|e| 2.0 * e.area * (mu + lambda))
+        // Each element's weight from its region's Lamé parameters.
+        let lame = element_lame(model.energies(), mesh.n_triangles());
+        let weights: Vec<Real> = (mesh.elements().iter().zip(&lame))
+            .map(|(e, &(mu, lambda))| 2.0 * e.area * (mu + lambda))
             .collect();
+        let psi_scale = (mesh.elements().iter().zip(&lame))
+            .map(|(e, &(mu, lambda))| (2.0 * mu + lambda).abs() * e.area)
+            .sum();
         let mut kinematic = vec![false; n];
         for v in model.kinematics().vertices() {
             kinematic[v] = true;
@@ -218,10 +220,10 @@ impl QuasiNewtonStepper {
             decay: exp(-params.damping * h),
             params,
             n_triangles: mesh.n_triangles(),
-            els: pack(mesh),
+            els: pack(mesh, model.energies().tags()),
             system,
             forbids_inversion: forbids_inversion(model.energy()),
-            psi_scale: (2.0 * mu + lambda).abs() * mesh.area(),
+            psi_scale,
             free,
             target: vec![Vec2::zeros(); n],
             load: vec![Vec2::zeros(); n],
@@ -276,7 +278,7 @@ impl QuasiNewtonStepper {
         let mesh = model.mesh();
         let potential = Potential {
             mesh,
-            energy: model.energy(),
+            energy: model.energies(),
             masses: model.masses(),
             weight: w,
             target: &self.target,
@@ -285,7 +287,13 @@ impl QuasiNewtonStepper {
         };
         let (e, magnitude) = potential.value(x, &mut self.scratch);
         if gradient.is_some() && e.is_finite() {
-            populate_forces(mesh, model.energy(), x, &mut self.forces, &mut self.scratch);
+            populate_forces(
+                mesh,
+                model.energies(),
+                x,
+                &mut self.forces,
+                &mut self.scratch,
+            );
             let n = self.free.len();
             let out = match gradient {
                 Some(Which::X) => &mut self.g,

@@ -335,7 +335,7 @@ impl Stepper for StaticStepper {
             }
             let potential = Potential {
                 mesh: model.mesh(),
-                energy: model.energy(),
+                energy: model.energies(),
                 masses: model.masses(),
                 weight: 0.0,
                 target: &[],

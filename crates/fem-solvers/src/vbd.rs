@@ -75,7 +75,7 @@
 //! Registered as `vbd` ([`Solver`]); scene keys `dt`, `substeps`, `iterations`, `damping`,
 //! `init`, `chebyshev_rho`, `line_search`.
 
-use fem_core::energy::Energy;
+use fem_core::energy::{ElementEnergies, Energy};
 use fem_core::math::{Mat2, Real, Vec2, exp};
 use fem_core::mesh::VertexAdjacency;
 use fem_core::par::prelude::*;
@@ -204,6 +204,8 @@ pub struct VbdStepper {
     decay: Real,
     n_triangles: usize,
     els: Vec<PackedElement>,
+    /// The rest P-wave modulus of each region, Pa: the scale of `psi`'s terms.
+    moduli: Vec<Real>,
     colouring: VertexColouring,
     forbids_inversion: bool,
     target: Vec<Vec2>,
@@ -282,7 +284,7 @@ const FAN: usize = 16;
 
 /// What a vertex update reads.
 struct Local<'a, E: Energy> {
-    energy: &'a E,
+    energy: &'a ElementEnergies<E>,
     els: &'a [PackedElement],
     adj: &'a VertexAdjacency,
     masses: &'a [Real],
@@ -292,8 +294,8 @@ struct Local<'a, E: Energy> {
     load: &'a [Vec2],
     line_search: bool,
     forbids_inversion: bool,
-    /// The P-wave modulus, Pa: the scale of `psi`'s terms.
-    modulus: Real,
+    /// The rest P-wave modulus of each region, Pa: the scale of `psi`'s terms.
+    moduli: &'a [Real],
     /// The springs of a spring grab, sorted by vertex.
     springs: &'a [Spring],
     /// Barrier contact (pairs indexed by vertex) and the largest move of a boundary vertex
@@ -315,10 +317,8 @@ impl<E: Energy> Local<'_, E> {
         }
         for &(t, corner) in self.adj.of(v) {
             let el = &self.els[t as usize];
-            e += el.area
-                * self
-                    .energy
-                    .psi(&deformation_gradient_with(el, x, corner, p));
+            let energy = el.energy(self.energy);
+            e += el.area * energy.psi(&deformation_gradient_with(el, x, corner, p));
         }
         e
     }
@@ -351,7 +351,8 @@ impl<E: Energy> Local<'_, E> {
         let search = self.line_search || self.contact.is_some_and(|(c, _)| c.vertex_has_pairs(v));
         let mut elastic = 0.0;
         let mut elastic_magnitude = 0.0;
-        let mut local_area = 0.0;
+        // sum of M_e a_e over the fan (M_e the element's rest P-wave modulus).
+        let mut local_scale = 0.0;
         // For the orientation test: per triangle, det F and w = cof(F) g, since moving the
         // vertex by s gives det(F + s g^T) = det F + s . w exactly (a rank-one update).
         let mut fan_det = [0.0; FAN];
@@ -360,17 +361,17 @@ impl<E: Energy> Local<'_, E> {
         let cheap_orientation = self.forbids_inversion && !search && fan.len() <= FAN;
         for (i, &(t, corner)) in fan.iter().enumerate() {
             let el = &self.els[t as usize];
-            local_area += el.area;
+            local_scale += self.moduli[el.region as usize] * el.area;
             let f = deformation_gradient(el, x);
             if search {
-                let psi = self.energy.psi(&f);
+                let psi = el.energy(self.energy).psi(&f);
                 elastic += el.area * psi;
                 elastic_magnitude += el.area * psi.abs();
             }
             let ga = corner_gradient(el, corner);
             // P and the corner block sum_jl g_j dP_ij/dF_kl g_l in one call (closed forms
             // that share the energy's work, e.g. one polar decomposition).
-            let (p, block) = self.energy.pk1_corner_block(&f, &ga);
+            let (p, block) = el.energy(self.energy).pk1_corner_block(&f, &ga);
             if cheap_orientation {
                 fan_det[i] = f.determinant();
                 fan_w[i] = Vec2::new(
@@ -431,7 +432,7 @@ impl<E: Energy> Local<'_, E> {
         // The round-off of the local potential: eps times its terms, and psi's terms are of
         // the order of the modulus, not of psi (as in Newton's line search). A change below it
         // says nothing, and the step is taken when it is valid (finite).
-        let floor = 1e-12 * (inertia + elastic_magnitude + self.modulus * local_area);
+        let floor = 1e-12 * (inertia + elastic_magnitude + local_scale);
         let mut fan_rate = [0.0; FAN];
         if cheap_orientation {
             for (r, w) in fan_rate.iter_mut().zip(&fan_w[..fan.len()]) {
@@ -547,7 +548,10 @@ impl VbdStepper {
             decay: exp(-params.damping * h),
             params,
             n_triangles: mesh.n_triangles(),
-            els: pack(mesh),
+            els: pack(mesh, model.energies().tags()),
+            moduli: (model.energies().energies().iter())
+                .map(|e| e.dpk1(&Mat2::identity())[(0, 0)].abs())
+                .collect(),
             colouring,
             forbids_inversion: forbids_inversion(model.energy()),
             target: vec![Vec2::zeros(); n],
@@ -777,7 +781,7 @@ impl Stepper for VbdStepper {
                 .as_ref()
                 .map_or(0.0, |c| (CONTACT_MARGIN - 1.0) * c.d_hat());
             let local = Local {
-                energy: model.energy(),
+                energy: model.energies(),
                 els: &self.els,
                 adj: model.mesh().adjacency(),
                 masses: model.masses(),
@@ -786,7 +790,7 @@ impl Stepper for VbdStepper {
                 load: &self.load,
                 line_search: self.params.line_search,
                 forbids_inversion: self.forbids_inversion,
-                modulus: model.p_wave_modulus(),
+                moduli: &self.moduli,
                 springs: model.springs(),
                 contact: None,
             };

@@ -412,7 +412,7 @@ impl App {
     fn refresh(&mut self) {
         populate_element_stress(
             &self.mesh,
-            self.model.energy(),
+            self.model.energies(),
             &self.state.x,
             self.formula,
             &mut self.stress,

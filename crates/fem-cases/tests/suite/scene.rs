@@ -835,10 +835,12 @@ fn docs_describe_every_field() {
     };
     let traction = "traction=[{min = [5.0, 0.0], max = [5.0, 1.0], traction = [0.0, 1.0]}]";
     let initial = "initial={scale = [1.0, 0.5]}";
+    let regions = "regions=[{name = \"stiff\", polygon = [[4.0, 0.0], [5.0, 0.0], [5.0, 1.0]]}]";
     for (case, pre, table, heading) in [
         ("case-a", None, "", "Top level"),
         ("case-a", None, "mesh", "`[mesh]`"),
         ("case-a", None, "material", "`[material]`"),
+        ("case-a", Some(regions), "regions.0", "`[[regions]]`"),
         ("case-a", None, "solver", "`[solver]`"),
         ("case-a", None, "pinned.0", "`[[pinned]]`"),
         ("case-b", None, "prescribed.0", "`[[prescribed]]`"),

@@ -40,6 +40,10 @@ impl Corotational {
 }
 
 impl Energy for Corotational {
+    fn with_lame(&self, lame: Lame) -> Result<Self, EnergyError> {
+        Self::new(lame)
+    }
+
     fn name(&self) -> &'static str {
         "corotational"
     }

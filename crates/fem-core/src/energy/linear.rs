@@ -39,6 +39,10 @@ impl Linear {
 }
 
 impl Energy for Linear {
+    fn with_lame(&self, lame: Lame) -> Result<Self, EnergyError> {
+        Self::new(lame)
+    }
+
     fn name(&self) -> &'static str {
         "linear"
     }

@@ -17,6 +17,7 @@
 mod corotational;
 mod linear;
 mod neo_hookean;
+mod regions;
 mod stable_neo_hookean;
 mod stvk;
 
@@ -26,6 +27,7 @@ use std::str::FromStr;
 pub use corotational::Corotational;
 pub use linear::Linear;
 pub use neo_hookean::NeoHookean;
+pub use regions::{ElementEnergies, EnergyOf};
 pub use stable_neo_hookean::StableNeoHookean;
 pub use stvk::Stvk;
 
@@ -41,6 +43,12 @@ use crate::math::{LANES, Mat2, Mat2Lanes, Mat4, Real, Vec2, vec_index};
 pub trait Energy: Send + Sync + Clone + fmt::Debug {
     /// The name used on the command line and in files (`stvk`, `neo-hookean`, ...).
     fn name(&self) -> &'static str;
+
+    /// The same energy with other Lamé parameters: the energy of a region of another material
+    /// in a body that shares one energy kind ([`ElementEnergies`]).
+    fn with_lame(&self, lame: Lame) -> Result<Self, EnergyError>
+    where
+        Self: Sized;
 
     /// Strain energy density `psi(F)`, J/m^2 per unit thickness.
     fn psi(&self, f: &Mat2) -> Real;
@@ -302,6 +310,10 @@ impl AnyEnergy {
 }
 
 impl Energy for AnyEnergy {
+    fn with_lame(&self, lame: Lame) -> Result<Self, EnergyError> {
+        self.kind().build(lame)
+    }
+
     fn name(&self) -> &'static str {
         self.kind().name()
     }

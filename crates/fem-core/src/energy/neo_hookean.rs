@@ -42,6 +42,10 @@ impl NeoHookean {
 }
 
 impl Energy for NeoHookean {
+    fn with_lame(&self, lame: Lame) -> Result<Self, EnergyError> {
+        Self::new(lame)
+    }
+
     fn name(&self) -> &'static str {
         "neo-hookean"
     }

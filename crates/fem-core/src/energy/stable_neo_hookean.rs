@@ -65,6 +65,10 @@ impl StableNeoHookean {
 }
 
 impl Energy for StableNeoHookean {
+    fn with_lame(&self, lame: Lame) -> Result<Self, EnergyError> {
+        Self::new(lame)
+    }
+
     fn name(&self) -> &'static str {
         "stable-neo-hookean"
     }

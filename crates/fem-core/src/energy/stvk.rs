@@ -46,6 +46,10 @@ impl Stvk {
 }
 
 impl Energy for Stvk {
+    fn with_lame(&self, lame: Lame) -> Result<Self, EnergyError> {
+        Self::new(lame)
+    }
+
     fn name(&self) -> &'static str {
         "stvk"
     }

@@ -154,7 +154,7 @@ fn equilibrium(kind: SolverKind) {
     let mut f = vec![Vec2::zeros(); model.mesh().n_vertices()];
     populate_forces(
         model.mesh(),
-        model.energy(),
+        model.energies(),
         &state.x,
         &mut f,
         &mut Scratch::new(),

@@ -23,7 +23,7 @@ fn true_limit<E: Energy>(model: &Model<E>) -> Real {
     let mut k = Stiffness::new(mesh);
     populate_stiffness_serial(
         mesh,
-        model.energy(),
+        model.energies(),
         mesh.vertices(),
         Tangent::Exact,
         &mut k,

@@ -166,7 +166,7 @@ fn elastic_forces_match_the_fem_core_reference() {
         .collect();
     let n = x.len();
     let mut reference = vec![Vec2::zeros(); n];
-    populate_forces_serial(model.mesh(), model.energy(), &x, &mut reference);
+    populate_forces_serial(model.mesh(), model.energies(), &x, &mut reference);
     let mut stepper = ExplicitStepper::new(&model, ExplicitParams::default()).unwrap();
     let mut state = State::new(&model, x, vec![Vec2::zeros(); n]).unwrap();
     stepper.step(&model, &mut state).unwrap();

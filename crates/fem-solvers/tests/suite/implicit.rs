@@ -256,7 +256,7 @@ fn an_inverting_prediction_restarts_from_the_current_positions() {
     let dt = 1e-2;
     // The prediction really is inverted: its x coordinates are 2.5 - 2 (x - 2.5).
     let predicted: Vec<_> = s.x.iter().zip(&s.v).map(|(x, v)| x + dt * v).collect();
-    let psi = fem_core::assembly::elastic_energy_serial(model.mesh(), model.energy(), &predicted);
+    let psi = fem_core::assembly::elastic_energy_serial(model.mesh(), model.energies(), &predicted);
     assert!(psi.is_infinite(), "{psi}");
     let mut im = ImplicitStepper::new(
         &model,

@@ -16,6 +16,7 @@ mod implicit;
 mod position_based;
 mod projective;
 mod quasi_newton;
+mod regions;
 mod registry;
 mod statics;
 mod vbd;

@@ -3,7 +3,7 @@
 //! definiteness fix must hold under compression (StVK indefinite); Chebyshev acceleration
 //! must not change the converged answer.
 
-use fem_core::energy::{AnyEnergy, EnergyKind};
+use fem_core::energy::{AnyEnergy, EnergyKind, EnergyOf};
 use fem_core::math::{Real, Vec2};
 use fem_solvers::{
     ImplicitParams, ImplicitStepper, Model, NewtonParams, Region, State, Stepper, VbdInit,
@@ -66,7 +66,7 @@ pub fn potential(model: &Model<AnyEnergy>, start: &State, dt: Real, x: &[Vec2]) 
     }
     for (t, el) in mesh.elements().iter().enumerate() {
         let f = el.deformation_gradient(mesh.gather(t, x));
-        e += el.area * model.energy().psi(&f);
+        e += el.area * model.energies().energy_of(t).psi(&f);
     }
     e
 }

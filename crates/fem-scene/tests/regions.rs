@@ -1,0 +1,154 @@
+//! `[[regions]]`: per-element materials from a scene file, as `fem2d run` builds them. A
+//! bimaterial bar in tension (soft left half, a polygon region a hundred times stiffer on the
+//! right half, `nu = 0`, static solver) has each half's analytic strain `t / E_i`; the masses
+//! follow each region's density; bad regions are one-line errors naming the field.
+
+use std::path::Path;
+
+use fem_core::dispatch_energy;
+use fem_core::math::Real;
+use fem_scene::build::{NoFiles, build_mesh, build_model, build_stepper, energy, material_regions};
+use fem_scene::scene::{LoadedScene, parse_scene};
+use fem_solvers::{State, Stepper};
+
+const BAR: &str = r#"
+name = "bimaterial-bar"
+energy = "corotational"
+gravity = [0.0, 0.0]
+
+[mesh]
+kind = "rectangle"
+width = 2.0
+height = 0.2
+nx = 20
+ny = 2
+
+[material]
+name = "soft"
+youngs_modulus = 1.0e4
+poisson_ratio = 0.0
+density = 100.0
+
+[[regions]]
+name = "stiff"
+polygon = [[1.0, -1.0], [3.0, -1.0], [3.0, 1.0], [1.0, 1.0]]
+youngs_modulus = 1.0e6
+density = 300.0
+
+[solver]
+kind = "static"
+dt = 1.0
+steps = 1
+
+[[pinned]]
+min = [0.0, 0.0]
+max = [0.0, 0.2]
+
+[[traction]]
+min = [2.0, 0.0]
+max = [2.0, 0.2]
+traction = [500.0, 0.0]
+"#;
+
+fn scene(overrides: &[&str]) -> Result<LoadedScene, String> {
+    let o: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();
+    parse_scene(BAR, "bar.toml", Path::new("."), &o).map_err(|e| e.to_string())
+}
+
+#[test]
+fn a_polygon_region_gives_its_elements_their_own_stiffness_and_density() {
+    let scene = scene(&[]).unwrap();
+    let mesh = build_mesh(&scene, &NoFiles).unwrap();
+    let regions = material_regions(&scene, &mesh).unwrap();
+    let names: Vec<&str> = regions.materials.iter().map(|m| m.name.as_str()).collect();
+    assert_eq!(names, ["soft", "stiff"]);
+    assert_eq!(regions.tags.iter().filter(|&&t| t == 1).count(), 40);
+    let e = energy(&scene).unwrap();
+    dispatch_energy!(e, e => {
+        let model = build_model(&scene, mesh, e).unwrap();
+        // 0.2 m^2 at 100 kg/m^3 and 0.2 m^2 at 300 kg/m^3.
+        let total: Real = model.masses().iter().sum();
+        assert!((total - 80.0).abs() < 1e-9, "{total}");
+        let mut stepper = build_stepper(&scene, &model).unwrap();
+        let mut state = State::at_rest(&model);
+        for _ in 0..100 {
+            if state.t >= 1.0 {
+                break;
+            }
+            stepper.step(&model, &mut state).unwrap();
+        }
+        assert_eq!(state.t, 1.0);
+        let ux = |at: Real| {
+            let v = model.mesh().vertices();
+            let on: Vec<usize> = (0..v.len()).filter(|&i| (v[i].x - at).abs() < 1e-9).collect();
+            on.iter().map(|&i| state.x[i].x - v[i].x).sum::<Real>() / on.len() as Real
+        };
+        let (soft, stiff) = (ux(1.0), ux(2.0) - ux(1.0));
+        assert!((soft / 0.05 - 1.0).abs() < 1e-6, "soft half strain {soft}");
+        assert!((stiff / 5e-4 - 1.0).abs() < 1e-6, "stiff half strain {stiff}");
+    });
+}
+
+#[test]
+fn a_total_mass_is_shared_by_what_the_regions_with_a_density_leave() {
+    let text = BAR.replace("density = 100.0", "total_mass = 100.0");
+    let scene = parse_scene(&text, "bar.toml", Path::new("."), &[]).unwrap();
+    let mesh = build_mesh(&scene, &NoFiles).unwrap();
+    let regions = material_regions(&scene, &mesh).unwrap();
+    // The stiff half weighs 0.2 x 300 = 60 kg; the soft half gets the other 40 kg.
+    assert!((regions.materials[0].density - 200.0).abs() < 1e-9);
+    let light = BAR.replace("density = 100.0", "total_mass = 50.0");
+    let scene = parse_scene(&light, "bar.toml", Path::new("."), &[]).unwrap();
+    let mesh = build_mesh(&scene, &NoFiles).unwrap();
+    let e = material_regions(&scene, &mesh).unwrap_err().to_string();
+    assert!(
+        e.contains("material.total_mass = 50: must exceed the 60.0000 kg"),
+        "{e}"
+    );
+}
+
+#[test]
+fn bad_regions_are_one_line_errors_naming_the_field() {
+    let cases: [(&[&str], &str); 5] = [
+        (
+            &["regions.0.youngs_modulus=-1"],
+            "regions.0.youngs_modulus = -1: must be a finite number > 0",
+        ),
+        (
+            &["regions.0.poisson_ratio=0.5"],
+            "regions.0.poisson_ratio = 0.5: must lie in the open interval",
+        ),
+        (
+            &["regions.0.name=\"soft\""],
+            "regions.0.name = \"soft\": must be non-empty and differ",
+        ),
+        (
+            &["regions.0.mesh_regions=[\"bone\"]"],
+            "regions.0.polygon = (given): give exactly one of polygon and mesh_regions",
+        ),
+        (
+            &["regions.0.polygon=[[0.0, 0.0], [1.0, 0.0]]"],
+            "regions.0.polygon = 2 points: needs at least 3 points",
+        ),
+    ];
+    for (overrides, want) in cases {
+        let e = scene(overrides).unwrap_err();
+        assert!(e.contains(want) && !e.contains('\n'), "{overrides:?}: {e}");
+    }
+    // Claims nothing; names a mesh region the rectangle does not carry.
+    let empty = scene(&["regions.0.polygon=[[5.0, 5.0], [6.0, 5.0], [6.0, 6.0]]"]).unwrap();
+    let mesh = build_mesh(&empty, &NoFiles).unwrap();
+    let e = material_regions(&empty, &mesh).unwrap_err().to_string();
+    assert!(e.contains("regions.0 = stiff: contains no element"), "{e}");
+    let text = BAR.replace(
+        "polygon = [[1.0, -1.0], [3.0, -1.0], [3.0, 1.0], [1.0, 1.0]]",
+        "mesh_regions = [\"femur\"]",
+    );
+    let named = parse_scene(&text, "bar.toml", Path::new("."), &[]).unwrap();
+    let mesh = build_mesh(&named, &NoFiles).unwrap();
+    let e = material_regions(&named, &mesh).unwrap_err().to_string();
+    assert!(
+        e.contains("\"femur\": is not a region of the mesh (it has: none)"),
+        "{e}"
+    );
+}
