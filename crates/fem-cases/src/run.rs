@@ -6,6 +6,8 @@
 //! [`OutDir`](crate::outdir::OutDir), so the whole directory is replaced as a unit):
 //! - `summary.json`: the [`Summary`] (the BRIEF's contract fields plus more);
 //! - `probes.csv`: one row per frame, `step,time` then `NAME.ux,NAME.uy` per probe (metres);
+//! - `regions.csv`: one row per frame, `step,time` then per material region its peak and mean
+//!   von Mises stress, largest compressive strain and area fraction above the stress threshold;
 //! - `frames.jsonl` (unless `output.frames = false`): one JSON object per frame with the
 //!   positions (`[x0, y0, x1, y1, ...]`), the obstacle polygons and the per-element von Mises
 //!   stress, for renderers;
@@ -420,6 +422,37 @@ pub fn probes_csv(result: &RunResult) -> String {
     out
 }
 
+/// `regions.csv` text: `step,time` then, per material region `NAME` (the summary's
+/// `regions`), `NAME.peak_von_mises,NAME.mean_von_mises` (Pa),
+/// `NAME.max_compressive_strain` and `NAME.area_above_threshold`, one row per frame.
+pub fn regions_csv(result: &RunResult) -> String {
+    let mut out = String::from("step,time");
+    for r in &result.summary.regions {
+        let _ = write!(
+            out,
+            ",{0}.peak_von_mises,{0}.mean_von_mises,{0}.max_compressive_strain,{0}.area_above_threshold",
+            r.name
+        );
+    }
+    out.push('\n');
+    for (k, (step, t)) in result.frame_times.iter().enumerate() {
+        let _ = write!(out, "{step},{t}");
+        for series in &result.region_series {
+            let f = series[k];
+            let _ = write!(
+                out,
+                ",{},{},{},{}",
+                f.peak_von_mises,
+                f.mean_von_mises,
+                f.max_compressive_strain,
+                f.area_above_threshold
+            );
+        }
+        out.push('\n');
+    }
+    out
+}
+
 /// `stress.json`: the von Mises stress of the last recorded frame per element (triangle order)
 /// and area-averaged per vertex (vertex order), Pa, with the formula used; non-finite values
 /// (inverted elements) are `null`.
@@ -439,6 +472,7 @@ fn write_outputs(scene: &LoadedScene, result: &RunResult, dir: &Path) -> Result<
     let summary = serde_json::to_string_pretty(&result.summary)
         .map_err(|e| SceneError::Io(format!("summary.json: {e}")))?;
     write_atomic(&dir.join("probes.csv"), probes_csv(result).as_bytes())?;
+    write_atomic(&dir.join("regions.csv"), regions_csv(result).as_bytes())?;
     let mesh = fem_mesh::Mesh2 {
         vertices: result.rest.clone(),
         triangles: result

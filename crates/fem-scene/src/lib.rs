@@ -37,6 +37,7 @@ pub mod build;
 pub mod cases;
 pub mod drag;
 pub mod error;
+pub mod region_stats;
 pub mod run;
 pub mod scene;
 mod solver_spec;

@@ -33,10 +33,11 @@ use serde::{Deserialize, Serialize};
 
 use crate::build::{
     MeshSource, NoFiles, Probe, build_mesh, build_model, build_stepper, energy, initial_state,
-    resolve_probes, von_mises_formula,
+    material_regions, resolve_probes, von_mises_formula,
 };
 use crate::drag::{DragPlayer, DragTrajectory};
 use crate::error::SceneError;
+use crate::region_stats::{RegionFrame, RegionSummary, RegionTracker};
 use crate::scene::LoadedScene;
 
 /// A monotonic clock, read for the run's timings.
@@ -274,6 +275,14 @@ pub struct Summary {
     /// explicit in time or when no solve converged.
     #[serde(default)]
     pub final_residual: Option<f64>,
+    /// The stress threshold of the regions' `area_above_threshold`, Pa
+    /// (`output.stress_threshold`).
+    #[serde(default)]
+    pub stress_threshold: f64,
+    /// Per material region (the base material first, then each `[[regions]]` entry): stress
+    /// and strain over the run ([`crate::region_stats`]).
+    #[serde(default)]
+    pub regions: Vec<RegionSummary>,
     /// Framework version.
     pub version: String,
 }
@@ -304,6 +313,11 @@ pub struct RunResult {
     /// Frames kept in memory ([`RunEnv::snapshot_every`]), in time order; the last one is the
     /// last recorded frame.
     pub snapshots: Vec<Snapshot>,
+    /// Per material region (as in [`Summary::regions`]), per recorded frame: its stress and
+    /// strain numbers.
+    pub region_series: Vec<Vec<RegionFrame>>,
+    /// The material region of each triangle (an index into [`Summary::regions`]).
+    pub region_tags: Vec<u32>,
 }
 
 impl RunResult {
@@ -342,6 +356,8 @@ struct Recorder {
     snapshots: Vec<Snapshot>,
     /// The latest recorded frame when it is not in `snapshots` (kept so the last frame is).
     latest: Option<Snapshot>,
+    /// Per-region stress and strain.
+    regions: RegionTracker,
 }
 
 impl Recorder {
@@ -367,6 +383,7 @@ impl Recorder {
         self.von_mises.clear();
         self.von_mises
             .extend(self.stress.iter().map(|s| s.von_mises));
+        self.regions.record(mesh, &self.stress, &state.x, step);
         if let Some((t, vm)) = self
             .von_mises
             .iter()
@@ -509,7 +526,10 @@ fn run_with<E: Energy>(
     let time_step_warning = stepper.time_step_warning();
     let mut state = initial_state(scene, &model)?;
     let (lo, hi) = bounds(model.mesh().vertices());
+    let regions = material_regions(scene, model.mesh())?;
+    let region_tags = regions.tags.clone();
     let mut rec = Recorder {
+        regions: RegionTracker::new(&regions, model.mesh(), s.output.stress_threshold),
         formula: von_mises_formula(scene),
         stress: Vec::new(),
         von_mises: Vec::new(),
@@ -561,7 +581,9 @@ fn run_with<E: Energy>(
     } else {
         done as f64 * s.solver.dt
     };
-    let summary = Summary {
+    let mut summary = Summary {
+        stress_threshold: rec.regions.threshold(),
+        regions: Vec::new(),
         scene: s.name.clone(),
         energy: s.energy,
         solver: s.solver.kind,
@@ -618,7 +640,11 @@ fn run_with<E: Energy>(
         version: env!("CARGO_PKG_VERSION").to_owned(),
     };
     let snapshots = rec.take_snapshots();
+    let (region_summaries, region_series) = rec.regions.finish();
+    summary.regions = region_summaries;
     Ok(RunResult {
+        region_series,
+        region_tags,
         summary,
         snapshots,
         rest: mesh.vertices().iter().map(|p| [p.x, p.y]).collect(),

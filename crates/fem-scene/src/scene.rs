@@ -396,6 +396,19 @@ pub struct OutputSpec {
     /// Default true.
     #[serde(default = "default_true")]
     pub frames: bool,
+    /// The von Mises stress above which a region's area counts in `area_above_threshold`, Pa.
+    /// Default 32 kPa.
+    #[serde(default = "default_stress_threshold")]
+    pub stress_threshold: f64,
+}
+
+/// [`OutputSpec::stress_threshold`]'s default, Pa: 32 kPa, the compressive stress skeletal
+/// muscle tolerates for under an hour before cells die (Linder-Ganz et al., J. Biomech. 39,
+/// 2006); docs/cases.md says how it is used.
+pub const DEFAULT_STRESS_THRESHOLD: f64 = 32e3;
+
+fn default_stress_threshold() -> f64 {
+    DEFAULT_STRESS_THRESHOLD
 }
 
 fn default_frame_every() -> u64 {
@@ -410,6 +423,7 @@ impl Default for OutputSpec {
         OutputSpec {
             frame_every: default_frame_every(),
             frames: true,
+            stress_threshold: DEFAULT_STRESS_THRESHOLD,
         }
     }
 }
@@ -904,6 +918,7 @@ impl LoadedScene {
         if s.output.frame_every == 0 {
             return Err(self.error("output.frame_every", 0, "must be >= 1"));
         }
+        non_negative("output.stress_threshold", s.output.stress_threshold, "Pa")?;
         let frames = s.planned_frames();
         if frames > fem_solvers::limits::MAX_RECORDED_FRAMES {
             return Err(self.error(
@@ -928,11 +943,14 @@ impl LoadedScene {
         let mut names = vec![s.material.name()];
         for (i, r) in s.regions.iter().enumerate() {
             let f = format!("regions.{i}");
-            if r.name.trim().is_empty() || names.contains(&r.name.as_str()) {
+            if r.name.trim().is_empty()
+                || r.name.contains([',', '"'])
+                || names.contains(&r.name.as_str())
+            {
                 return Err(self.error(
                     &format!("{f}.name"),
                     format!("{:?}", r.name),
-                    "must be non-empty and differ from material.name and the other regions' names",
+                    "must be non-empty, without commas or quotes, and differ from material.name and the other regions' names",
                 ));
             }
             names.push(&r.name);

@@ -120,7 +120,7 @@ fn bad_regions_are_one_line_errors_naming_the_field() {
         ),
         (
             &["regions.0.name=\"soft\""],
-            "regions.0.name = \"soft\": must be non-empty and differ",
+            "regions.0.name = \"soft\": must be non-empty, without commas",
         ),
         (
             &["regions.0.mesh_regions=[\"bone\"]"],
@@ -151,4 +151,44 @@ fn bad_regions_are_one_line_errors_naming_the_field() {
         e.contains("\"femur\": is not a region of the mesh (it has: none)"),
         "{e}"
     );
+}
+
+#[test]
+fn each_region_reports_its_stress_strain_and_area_above_the_threshold() {
+    use fem_scene::run::{RunEnv, run};
+    // Uniaxial tension with nu = 0: the Cauchy stress is the traction, 500 Pa, in both
+    // halves, so is the von Mises stress; nothing is compressed.
+    for (threshold, above) in [(400.0, 1.0), (600.0, 0.0)] {
+        let set = format!("output.stress_threshold={threshold}");
+        let scene = scene(&[&set]).unwrap();
+        let result = run(&scene, &mut RunEnv::default()).unwrap();
+        let regions = &result.summary.regions;
+        assert_eq!(regions.len(), 2);
+        assert_eq!(result.summary.stress_threshold, threshold);
+        for r in regions {
+            assert!((r.area - 0.2).abs() < 1e-12, "{}: {}", r.name, r.area);
+            assert!(
+                (r.peak_von_mises - 500.0).abs() < 1e-6,
+                "{}: {}",
+                r.name,
+                r.peak_von_mises
+            );
+            assert!((r.last.mean_von_mises - 500.0).abs() < 1e-6);
+            assert!(
+                r.max_compressive_strain < 1e-9,
+                "{}",
+                r.max_compressive_strain
+            );
+            assert_eq!(r.last.area_above_threshold, above, "{}", r.name);
+        }
+        assert_eq!((regions[0].density, regions[1].density), (100.0, 300.0));
+        assert_eq!(regions[1].youngs_modulus, 1.0e6);
+        // One series entry per recorded frame and region.
+        assert!(
+            result
+                .region_series
+                .iter()
+                .all(|s| s.len() == result.frame_times.len())
+        );
+    }
 }

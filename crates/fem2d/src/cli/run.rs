@@ -87,6 +87,11 @@ pub struct RunArgs {
     /// simulated times; docs/interactive.md) into the run.
     #[arg(long, value_name = "FILE")]
     pub drag: Option<PathBuf>,
+    /// Von Mises stress threshold, kPa: each material region reports the fraction of its area
+    /// above it (summary `regions`, `regions.csv`). Default: the scene's
+    /// `output.stress_threshold` (32 kPa unless set).
+    #[arg(long, value_name = "KPA", allow_negative_numbers = true)]
+    pub stress_threshold: Option<f64>,
 }
 
 /// The overrides of the common flags, then the user's `--set`s.
@@ -116,13 +121,18 @@ pub fn overrides(
 
 /// Runs `fem2d run`.
 pub fn run(args: &RunArgs) -> Result<(), String> {
-    let overrides = overrides(
+    let mut overrides = overrides(
         args.energy.as_deref(),
         args.solver.as_deref(),
         args.dt,
         args.steps,
         &args.scene.set,
     );
+    if let Some(kpa) = args.stress_threshold {
+        // Before the user's --set, which may still override it.
+        let at = overrides.len() - args.scene.set.len();
+        overrides.insert(at, format!("output.stress_threshold={:e}", kpa * 1e3));
+    }
     let field: FieldKind = args.field.parse().map_err(|e| format!("--field: {e}"))?;
     if args.gif_every == Some(0) {
         return Err("--gif-every 0: must be >= 1".into());
@@ -274,6 +284,21 @@ pub fn run(args: &RunArgs) -> Result<(), String> {
         fixed(s.min_det_f, 4),
         s.inverted_elements
     );
+    for r in &s.regions {
+        println!(
+            "region {}: peak von Mises {:.2} kPa (step {}, at [{}, {}] m), mean {:.2} kPa at the end, largest compressive strain {:.4}, {:.2} % of its area above {:.1} kPa at the end (peak {:.2} %)",
+            r.name,
+            r.peak_von_mises * 1e-3,
+            r.peak_von_mises_step,
+            fixed(r.peak_von_mises_at[0], 3),
+            fixed(r.peak_von_mises_at[1], 3),
+            r.last.mean_von_mises * 1e-3,
+            r.max_compressive_strain,
+            100.0 * r.last.area_above_threshold,
+            s.stress_threshold * 1e-3,
+            100.0 * r.peak_area_above_threshold,
+        );
+    }
     for p in &s.probes {
         println!(
             "probe {}: vertex {} at [{}, {}], final displacement [{}, {}] m",
@@ -286,7 +311,7 @@ pub fn run(args: &RunArgs) -> Result<(), String> {
         );
     }
     println!(
-        "wrote summary.json, probes.csv, mesh.json, stress.json, scene.toml{}{} in {}",
+        "wrote summary.json, probes.csv, regions.csv, mesh.json, stress.json, scene.toml{}{} in {}",
         if scene.scene.output.frames {
             ", frames.jsonl"
         } else {

@@ -19,11 +19,12 @@ fn listing(dir: &Path) -> Vec<String> {
 }
 
 /// The outputs, and the marker that says fem2d wrote the directory (so it may replace it).
-const OUTPUTS: [&str; 7] = [
+const OUTPUTS: [&str; 8] = [
     ".fem2d-output",
     "frames.jsonl",
     "mesh.json",
     "probes.csv",
+    "regions.csv",
     "scene.toml",
     "stress.json",
     "summary.json",
@@ -402,6 +403,7 @@ frames = false
             ".fem2d-output",
             "mesh.json",
             "probes.csv",
+            "regions.csv",
             "scene.toml",
             "stress.json",
             "summary.json"
