@@ -44,7 +44,7 @@ pub mod triangulate;
 pub mod types;
 
 pub use error::{MeshError, Result};
-pub use types::{Mesh2, PolygonWithHoles, Surface3};
+pub use types::{Bone, InnerRegion, Mesh2, PolygonWithHoles, Skeleton, Surface3};
 
 /// The types most programs need, in one import: `use fem_mesh::prelude::*;`.
 ///
