@@ -217,7 +217,7 @@ pub fn triangulate_regions(
 
 /// Checks that every inner polygon lies strictly inside the outer domain and that no two inner
 /// polygons touch or overlap; the error names the region(s) and a place.
-fn check_inner_regions(outer: &[PolygonWithHoles], inner: &[InnerRegion]) -> Result<()> {
+pub(crate) fn check_inner_regions(outer: &[PolygonWithHoles], inner: &[InnerRegion]) -> Result<()> {
     let outer_rings: Vec<(&Vec<[f64; 2]>, [f64; 4])> = outer
         .iter()
         .flat_map(PolygonWithHoles::rings)
