@@ -38,6 +38,7 @@ pub mod load;
 pub mod pipeline;
 pub mod preview;
 pub mod quality;
+pub mod shank;
 pub mod simplify;
 
 pub mod triangulate;

@@ -128,9 +128,10 @@ pub const OUTER_REGION_NAME: &str = "soft-tissue";
 /// another is fine); otherwise a one-line error names the region. With no inner region this is
 /// [`triangulate`] with every triangle tagged 0.
 ///
-/// The refinement runs over the whole convex hull of the input (spade's inside/outside parity
-/// rule would count every inner region as a hole), and the faces outside the outer domain are
-/// dropped afterwards; the report's Steiner count includes the dropped ones.
+/// The refinement runs over a rectangular frame around the input, a tenth of its extent away
+/// (spade's inside/outside parity rule would count every inner region as a hole), and the
+/// faces outside the outer domain are dropped afterwards; the report's Steiner count includes
+/// the dropped ones.
 pub fn triangulate_regions(
     outer: &[PolygonWithHoles],
     inner: &[InnerRegion],
@@ -145,6 +146,7 @@ pub fn triangulate_regions(
     check_params(params)?;
     let mut rings = Rings::default();
     rings.push(outer, "", false)?;
+    let outer_vertices = rings.vertices.len();
     if rings.vertices.is_empty() {
         return Err(MeshError::invalid(
             "triangulate",
@@ -166,18 +168,36 @@ pub fn triangulate_regions(
     }
     check_inner_regions(outer, inner)?;
     let Rings {
-        vertices,
-        edges,
+        mut vertices,
+        mut edges,
         smallest_input_angle_deg,
     } = rings;
+    // A frame around the domain, a tenth of its extent away, becomes the convex hull: the
+    // outside that refinement sees is then an ordinary region, not slivers between the hull and
+    // straight stretches of the outline (whose refinement would chop those into specks).
+    let b = outer
+        .iter()
+        .map(|p| bbox(&p.outer))
+        .fold(bbox(&[]), |a, b| {
+            [
+                a[0].min(b[0]),
+                a[1].min(b[1]),
+                a[2].max(b[2]),
+                a[3].max(b[3]),
+            ]
+        });
+    let margin = 0.1 * (b[2] - b[0]).max(b[3] - b[1]);
+    let base = vertices.len();
+    for [x, y] in [
+        [b[0] - margin, b[1] - margin],
+        [b[2] + margin, b[1] - margin],
+        [b[2] + margin, b[3] + margin],
+        [b[0] - margin, b[3] + margin],
+    ] {
+        vertices.push(Point2::new(x, y));
+    }
+    edges.extend((0..4).map(|i| [base + i, base + (i + 1) % 4]));
     let thin = thin_polygon(outer);
-    let boxes: Vec<[f64; 4]> = outer.iter().map(|p| bbox(&p.outer)).collect();
-    let inside = |p: [f64; 2]| {
-        outer
-            .iter()
-            .zip(&boxes)
-            .any(|(q, b)| in_box(p, b) && q.contains(p))
-    };
     let (mut mesh, report) = crate::guard::guarded("triangulate", || {
         mesh_rings(
             vertices,
@@ -185,7 +205,7 @@ pub fn triangulate_regions(
             smallest_input_angle_deg,
             params,
             thin,
-            Some(&inside),
+            Some(outer_vertices),
         )
     })??;
     let inner_boxes: Vec<Vec<[f64; 4]>> = inner
@@ -493,8 +513,16 @@ fn mesh_rings(
     smallest_input_angle_deg: f64,
     params: &TriangulateParams,
     thin: Option<MeshError>,
-    domain: Option<&dyn Fn([f64; 2]) -> bool>,
+    outer_vertices: Option<usize>,
 ) -> Result<(Mesh2, TriangulateReport)> {
+    // The outer rings' input vertices (the first `outer_vertices` of the input), by position:
+    // spade's bulk load does not keep vertex indices.
+    let outer_positions: Option<std::collections::HashSet<[u64; 2]>> = outer_vertices.map(|n| {
+        vertices[..n]
+            .iter()
+            .map(|p| [p.x.to_bits(), p.y.to_bits()])
+            .collect()
+    });
     let mut conflicts = 0usize;
     let mut cdt: ConstrainedDelaunayTriangulation<Point2<f64>> =
         ConstrainedDelaunayTriangulation::try_bulk_load_cdt(vertices, edges, |_| conflicts += 1)
@@ -509,11 +537,12 @@ fn mesh_rings(
         return Err(e);
     }
     let initial = cdt.num_vertices();
-    // Without a domain test, spade's parity rule tells inside from outside; with one (inner
-    // regions, whose rings would flip the parity), every face is refined and the domain test
-    // picks the faces afterwards.
+    // Without inner regions, spade's parity rule tells inside from outside. Inner regions'
+    // rings would flip that parity (every region would count as a hole), so then every face is
+    // refined and the faces of the domain are picked afterwards by a parity of the outer rings
+    // alone (`outer_domain_faces`).
     let mut refinement = RefinementParameters::<f64>::new()
-        .exclude_outer_faces(domain.is_none())
+        .exclude_outer_faces(outer_positions.is_none())
         .with_angle_limit(AngleLimit::from_deg(params.min_angle_deg))
         .with_max_additional_vertices(params.max_steiner_points);
     if let Some(a) = params.max_area {
@@ -524,18 +553,17 @@ fn mesh_rings(
     for f in &result.excluded_faces {
         excluded[f.index()] = true;
     }
+    if let Some(outer) = &outer_positions {
+        excluded = outer_domain_faces(&cdt, outer)
+            .into_iter()
+            .map(|inside| !inside)
+            .collect();
+    }
     let mut index = vec![usize::MAX; cdt.num_vertices()];
     let mut mesh = Mesh2::default();
     for face in cdt.inner_faces() {
         if excluded[face.fix().index()] {
             continue;
-        }
-        if let Some(inside) = domain {
-            let [a, b, c] = face.positions();
-            let centroid = [(a.x + b.x + c.x) / 3.0, (a.y + b.y + c.y) / 3.0];
-            if !inside(centroid) {
-                continue;
-            }
         }
         let tri = face.vertices().map(|v| {
             let i = v.fix().index();
@@ -595,6 +623,76 @@ fn mesh_rings(
             .is_none_or(|a| max_area <= a * (1.0 + CHECK_SLACK)),
     };
     Ok((mesh, report))
+}
+
+/// Which faces (by index) lie inside the outer rings: the parity of the outer-ring edges
+/// crossed on the way from the convex hull (inner regions' rings do not count). An outer-ring
+/// edge is a constraint edge between two vertices of the outer rings: the input vertices at
+/// `outer` and the Steiner points refinement put on their edges, found by walking constraint
+/// edges from them (rings are disjoint, so the walk never reaches an inner ring).
+fn outer_domain_faces(
+    cdt: &ConstrainedDelaunayTriangulation<Point2<f64>>,
+    outer: &std::collections::HashSet<[u64; 2]>,
+) -> Vec<bool> {
+    let mut on_outer = vec![false; cdt.num_vertices()];
+    let mut stack = Vec::new();
+    for v in cdt.vertices() {
+        let p = v.position();
+        if outer.contains(&[p.x.to_bits(), p.y.to_bits()]) {
+            on_outer[v.fix().index()] = true;
+            stack.push(v.fix());
+        }
+    }
+    while let Some(v) = stack.pop() {
+        for e in cdt.vertex(v).out_edges() {
+            let w = e.to().fix();
+            if e.is_constraint_edge() && !on_outer[w.index()] {
+                on_outer[w.index()] = true;
+                stack.push(w);
+            }
+        }
+    }
+    // 0-1 breadth-first search: crossing an outer-ring edge costs one layer.
+    let mut layer = vec![usize::MAX; cdt.num_all_faces()];
+    let mut queue = std::collections::VecDeque::new();
+    let crossing_cost = |e: &spade::handles::DirectedEdgeHandle<'_, _, _, _, _>| {
+        usize::from(
+            e.is_constraint_edge()
+                && on_outer[e.from().fix().index()]
+                && on_outer[e.to().fix().index()],
+        )
+    };
+    for hull in cdt.convex_hull() {
+        let e = hull.rev();
+        queue.push_back((e.fix(), crossing_cost(&e)));
+    }
+    while let Some((edge, depth)) = queue.pop_front() {
+        let e = cdt.directed_edge(edge);
+        let Some(face) = e.face().as_inner() else {
+            continue;
+        };
+        let i = face.fix().index();
+        if layer[i] <= depth {
+            continue;
+        }
+        layer[i] = depth;
+        for side in face.adjacent_edges() {
+            let next = side.rev();
+            if next.face().is_outer() {
+                continue;
+            }
+            let cost = crossing_cost(&next);
+            if cost == 0 {
+                queue.push_front((next.fix(), depth));
+            } else {
+                queue.push_back((next.fix(), depth + 1));
+            }
+        }
+    }
+    layer
+        .into_iter()
+        .map(|d| d != usize::MAX && d % 2 == 1)
+        .collect()
 }
 
 /// Angle of the meshed region at ring corner `b` of the ring `a -> b -> c` (degrees, in
