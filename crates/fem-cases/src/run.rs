@@ -480,6 +480,7 @@ fn write_outputs(scene: &LoadedScene, result: &RunResult, dir: &Path) -> Result<
             .iter()
             .map(|t| t.map(|i| i as usize))
             .collect(),
+        ..Default::default()
     };
     write_atomic(
         &dir.join("mesh.json"),

@@ -1,79 +1,325 @@
-//! A procedural human body: a 3D triangle surface built in code from ellipsoids and capsules
-//! (head, neck, chest, pelvis, arms, hands, legs, feet), about 1.7 m tall, in metres, +Y up, +Z
-//! forward (toes and face), +X the body's left, soles at y = 0. It lets the pipeline (and case D)
-//! run on a fresh machine without any model file.
+//! A procedural human body and its skeleton, built in code from ellipsoids and capsules, in
+//! metres, +Y up, +Z forward (toes and face), +X the body's left, soles of the standing foot at
+//! y = 0. It lets the pipeline (and case D) run on a fresh machine without any model file.
 //!
-//! The surface is a union of closed, overlapping shells (one per part), not a boolean union: the
-//! pipeline only needs the projected vertices. Parts overlap generously so every silhouette
-//! (side, front, oblique) is one connected region; the arms hang clear of the torso and the legs
-//! apart, so the front view shows both gaps.
+//! [`human_body`] is the skin: an adult of about 1.75 m (head, neck, chest, abdomen, pelvis,
+//! arms, hands, legs with calves, feet). The arms hang mirror-symmetric, clear of the trunk. The
+//! legs differ, so a side view shows two legs: the right leg stands straight, the left is in
+//! mid-stride, flexed 30 degrees at the hip and 45 at the knee (knee forward, shank sloping
+//! back 15 degrees, foot off the ground), and the silhouette stays one connected region.
+//!
+//! [`human_skeleton`] gives the bones inside it, each made of closed convex parts (capsules and
+//! ellipsoids) for [`crate::pipeline::mesh_surface_with_skeleton`]: `skull`, `spine` (a chain
+//! of capsules along the back, neck to lumbar), `pelvis`, `femur`, `tibia`, `fibula` and
+//! `humerus` (left and right parts under one name). The tibia is a shaft with a wider proximal
+//! plateau, its anterior surface 13 mm under the shin's skin (the thin soft tissue of a real
+//! shin); the fibula is a separate bone, lateral and clearly posterior to the tibia, so the two
+//! are disjoint in side and front views. Every bone keeps at least 1 cm of soft tissue to the
+//! skin in the side and front views, and bones of different names are disjoint in both.
+//!
+//! The surfaces are unions of closed, overlapping shells (one per part), not boolean unions: the
+//! pipeline only needs the projected vertices.
 
 use std::f64::consts::PI;
 
-use crate::types::Surface3;
+use crate::types::{Bone, Skeleton, Surface3};
 
 /// Target vertex spacing on the part surfaces (metres): fine enough for an alpha radius of a
 /// few centimetres.
 const SPACING: f64 = 0.015;
 
-/// Builds the body surface.
+/// Soft tissue between the tibia's anterior surface and the shin's skin (metres).
+pub const SHIN_SOFT_TISSUE: f64 = 0.013;
+
+/// Shoulder, elbow and wrist of the left arm (the right arm is its mirror image, x -> -x).
+const SHOULDER: [f64; 3] = [0.19, 1.40, 0.0];
+const ELBOW: [f64; 3] = [0.33, 1.12, 0.0];
+const WRIST: [f64; 3] = [0.40, 0.90, 0.05];
+
+/// One leg: hip, knee and ankle joints and which side (+1 left, -1 right).
+#[derive(Clone, Copy)]
+struct Leg {
+    hip: [f64; 3],
+    knee: [f64; 3],
+    ankle: [f64; 3],
+    side: f64,
+}
+
+/// Skin radius of the shank at the knee and at the ankle (metres).
+const SHANK_RADII: [f64; 2] = [0.05, 0.04];
+
+impl Leg {
+    /// The right leg, straight (knee over ankle).
+    fn right() -> Self {
+        Self {
+            hip: [-0.095, 0.90, 0.0],
+            knee: [-0.10, 0.48, 0.01],
+            ankle: [-0.105, 0.08, -0.01],
+            side: -1.0,
+        }
+    }
+
+    /// The left leg in mid-stride: thigh 0.42 m flexed 30 degrees forward, shank 0.40 m
+    /// sloping 15 degrees back from vertical.
+    fn left() -> Self {
+        let (s30, c30) = libm::sincos(30f64.to_radians());
+        let (s15, c15) = libm::sincos(15f64.to_radians());
+        let hip = [0.095, 0.90, 0.0];
+        let knee = [0.10, hip[1] - 0.42 * c30, 0.42 * s30];
+        let ankle = [0.105, knee[1] - 0.40 * c15, knee[2] - 0.40 * s15];
+        Self {
+            hip,
+            knee,
+            ankle,
+            side: 1.0,
+        }
+    }
+
+    /// The shank's frame: unit axis (knee to ankle), anterior and lateral directions, length.
+    fn shank_frame(&self) -> Frame {
+        Frame::along(self.knee, self.ankle, self.side)
+    }
+
+    /// The thigh's frame (hip to knee).
+    fn thigh_frame(&self) -> Frame {
+        Frame::along(self.hip, self.knee, self.side)
+    }
+
+    /// Skin radius of the shank at distance `s` from the knee.
+    fn shank_radius(&self, s: f64) -> f64 {
+        let len = self.shank_frame().length;
+        SHANK_RADII[0] + (SHANK_RADII[1] - SHANK_RADII[0]) * (s / len)
+    }
+}
+
+/// A limb segment's local frame: `origin + s * axis + a * anterior + l * lateral`.
+#[derive(Clone, Copy)]
+struct Frame {
+    origin: [f64; 3],
+    axis: [f64; 3],
+    anterior: [f64; 3],
+    lateral: [f64; 3],
+    length: f64,
+}
+
+impl Frame {
+    /// The frame from `a` to `b`; anterior is +Z made orthogonal to the axis, lateral points
+    /// to the body's `side` (+1 left, +X).
+    fn along(a: [f64; 3], b: [f64; 3], side: f64) -> Self {
+        let d = sub(b, a);
+        let length = norm(d);
+        let axis = d.map(|c| c / length);
+        let z = [0.0, 0.0, 1.0];
+        let along = dot(z, axis);
+        let anterior = normalise(sub(z, axis.map(|c| c * along)));
+        let mut lateral = cross(axis, anterior);
+        if lateral[0] * side < 0.0 {
+            lateral = lateral.map(|c| -c);
+        }
+        Self {
+            origin: a,
+            axis,
+            anterior,
+            lateral,
+            length,
+        }
+    }
+
+    /// The point at `s` along the axis, `a` anterior and `l` lateral.
+    fn at(&self, s: f64, a: f64, l: f64) -> [f64; 3] {
+        std::array::from_fn(|k| {
+            self.origin[k] + s * self.axis[k] + a * self.anterior[k] + l * self.lateral[k]
+        })
+    }
+}
+
+/// Builds the body surface (the skin).
 pub fn human_body() -> Surface3 {
     let mut s = Surface3::default();
-    // Head, neck, trunk.
-    ellipsoid(&mut s, [0.0, 1.58, 0.01], [0.075, 0.11, 0.095]);
-    capsule(&mut s, [0.0, 1.38, 0.0], [0.0, 1.50, 0.0], 0.05);
-    ellipsoid(&mut s, [0.0, 1.24, 0.0], [0.17, 0.22, 0.11]);
-    ellipsoid(&mut s, [0.0, 0.97, 0.0], [0.16, 0.15, 0.11]);
-    // One side's limbs, then their exact mirror image (x -> -x), so that mirror twins project to
+    // Head, neck, trunk (chest, abdomen, pelvis).
+    ellipsoid(&mut s, [0.0, 1.635, 0.01], [0.078, 0.115, 0.098]);
+    capsule(&mut s, [0.0, 1.45, -0.01], [0.0, 1.56, 0.0], 0.055, 0.055);
+    ellipsoid(&mut s, [0.0, 1.30, 0.0], [0.17, 0.20, 0.11]);
+    ellipsoid(&mut s, [0.0, 1.09, 0.01], [0.15, 0.15, 0.11]);
+    ellipsoid(&mut s, [0.0, 0.95, -0.01], [0.175, 0.12, 0.115]);
+    // The arms: the left one, then its exact mirror image, so that mirror twins project to
     // bit-identical points in a side view and merge.
-    let mut left = Surface3::default();
-    // Arm: shoulder, elbow, wrist; hand.
-    capsule(&mut left, [0.19, 1.40, 0.0], [0.33, 1.12, 0.0], 0.045);
-    capsule(&mut left, [0.33, 1.12, 0.0], [0.40, 0.90, 0.05], 0.04);
-    ellipsoid(&mut left, [0.41, 0.82, 0.065], [0.025, 0.07, 0.045]);
-    // Leg: hip, knee, ankle; foot.
-    capsule(&mut left, [0.095, 0.93, 0.0], [0.12, 0.50, 0.01], 0.075);
-    capsule(&mut left, [0.12, 0.50, 0.01], [0.13, 0.08, -0.01], 0.055);
-    ellipsoid(&mut left, [0.13, 0.045, 0.05], [0.045, 0.045, 0.12]);
-    for mirror in [false, true] {
-        let base = s.vertices.len();
-        s.vertices.extend(
-            left.vertices
-                .iter()
-                .map(|&[x, y, z]| [if mirror { -x } else { x }, y, z]),
+    let mut arm = Surface3::default();
+    capsule(&mut arm, SHOULDER, ELBOW, 0.05, 0.04);
+    capsule(&mut arm, ELBOW, WRIST, 0.038, 0.03);
+    ellipsoid(&mut arm, [0.41, 0.82, 0.065], [0.025, 0.07, 0.045]);
+    append(&mut s, &arm, false);
+    append(&mut s, &arm, true);
+    // The legs: thigh, shank, calf, foot.
+    for leg in [Leg::right(), Leg::left()] {
+        capsule(&mut s, leg.hip, leg.knee, 0.08, 0.055);
+        capsule(&mut s, leg.knee, leg.ankle, SHANK_RADII[0], SHANK_RADII[1]);
+        let f = leg.shank_frame();
+        ellipsoid_in(
+            &mut s,
+            f.at(0.13, -0.022, 0.0),
+            [f.axis, f.anterior, f.lateral],
+            [0.12, 0.045, 0.048],
         );
-        // Mirroring flips orientation: swap two corners to keep the winding outward.
-        s.triangles.extend(left.triangles.iter().map(|&[a, b, c]| {
-            if mirror {
-                [base + a, base + c, base + b]
-            } else {
-                [base + a, base + b, base + c]
-            }
-        }));
+        let a = leg.ankle;
+        let foot = [a[0] + 0.005 * leg.side, a[1] - 0.035, a[2] + 0.06];
+        ellipsoid(&mut s, foot, [0.045, 0.045, 0.125]);
     }
     s
 }
 
-/// Appends a closed latitude-longitude ellipsoid with the given centre and semi-axes.
+/// Builds the skeleton inside [`human_body`] (see the module docs for the bones and margins).
+pub fn human_skeleton() -> Skeleton {
+    let part = |build: &dyn Fn(&mut Surface3)| {
+        let mut s = Surface3::default();
+        build(&mut s);
+        s
+    };
+    let skull = part(&|s| ellipsoid(s, [0.0, 1.645, 0.005], [0.058, 0.085, 0.075]));
+    // Cervical, thoracic and lumbar spine: a chain along the back, its curves following the
+    // neck and trunk.
+    let spine_points: [[f64; 3]; 6] = [
+        [0.0, 1.52, -0.02],
+        [0.0, 1.42, -0.035],
+        [0.0, 1.30, -0.06],
+        [0.0, 1.18, -0.06],
+        [0.0, 1.10, -0.045],
+        [0.0, 1.06, -0.05],
+    ];
+    let spine = spine_points
+        .windows(2)
+        .map(|w| part(&|s| capsule(s, w[0], w[1], 0.012, 0.012)))
+        .collect();
+    let pelvis = part(&|s| ellipsoid(s, [0.0, 0.97, -0.015], [0.12, 0.055, 0.06]));
+    let (mut femur, mut tibia, mut fibula) = (Vec::new(), Vec::new(), Vec::new());
+    for leg in [Leg::right(), Leg::left()] {
+        let t = leg.thigh_frame();
+        femur.push(part(&|s| {
+            capsule(
+                s,
+                t.at(0.03, 0.0, 0.0),
+                t.at(t.length - 0.035, 0.0, 0.0),
+                0.014,
+                0.014,
+            )
+        }));
+        let f = leg.shank_frame();
+        // Tibia: the shaft (25 mm thick) with its anterior surface SHIN_SOFT_TISSUE under the
+        // skin all along, slightly medial; the plateau under the knee, wider.
+        let (top, bottom) = (0.06, f.length - 0.06);
+        let r = 0.0125;
+        let anterior = |s: f64| leg.shank_radius(s) - SHIN_SOFT_TISSUE - r;
+        tibia.push(part(&|s| {
+            capsule(
+                s,
+                f.at(top, anterior(top), -0.006),
+                f.at(bottom, anterior(bottom), -0.006),
+                r,
+                r,
+            )
+        }));
+        tibia.push(part(&|s| {
+            ellipsoid_in(
+                s,
+                f.at(0.035, 0.005, -0.006),
+                [f.axis, f.anterior, f.lateral],
+                [0.022, 0.028, 0.032],
+            )
+        }));
+        // Fibula: thin, lateral and posterior, below the tibial plateau.
+        fibula.push(part(&|s| {
+            capsule(
+                s,
+                f.at(0.09, -0.02, 0.023),
+                f.at(bottom, -0.02, 0.023),
+                0.0065,
+                0.0065,
+            )
+        }));
+    }
+    let mut humerus = Vec::new();
+    let arm = Frame::along(SHOULDER, ELBOW, 1.0);
+    let left_humerus = part(&|s| {
+        capsule(
+            s,
+            arm.at(0.04, 0.0, 0.0),
+            arm.at(arm.length - 0.03, 0.0, 0.0),
+            0.012,
+            0.012,
+        )
+    });
+    for mirror in [false, true] {
+        let mut h = Surface3::default();
+        append(&mut h, &left_humerus, mirror);
+        humerus.push(h);
+    }
+    let bone = |name: &str, parts: Vec<Surface3>| Bone {
+        name: name.to_owned(),
+        parts,
+    };
+    Skeleton {
+        bones: vec![
+            bone("skull", vec![skull]),
+            bone("spine", spine),
+            bone("pelvis", vec![pelvis]),
+            bone("femur", femur),
+            bone("tibia", tibia),
+            bone("fibula", fibula),
+            bone("humerus", humerus),
+        ],
+    }
+}
+
+/// Appends `part` to `s`, mirrored (x -> -x) when asked.
+fn append(s: &mut Surface3, part: &Surface3, mirror: bool) {
+    let base = s.vertices.len();
+    s.vertices.extend(
+        part.vertices
+            .iter()
+            .map(|&[x, y, z]| [if mirror { -x } else { x }, y, z]),
+    );
+    // Mirroring flips orientation: swap two corners to keep the winding outward.
+    s.triangles.extend(part.triangles.iter().map(|&[a, b, c]| {
+        if mirror {
+            [base + a, base + c, base + b]
+        } else {
+            [base + a, base + b, base + c]
+        }
+    }));
+}
+
+/// Appends a closed latitude-longitude ellipsoid with the given centre and semi-axes along x,
+/// y and z.
 fn ellipsoid(s: &mut Surface3, centre: [f64; 3], radii: [f64; 3]) {
+    let axes = [[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]];
+    ellipsoid_in(s, centre, axes, [radii[1], radii[2], radii[0]]);
+}
+
+/// Appends a closed ellipsoid with semi-axes `radii[k]` along the orthonormal `axes[k]`; the
+/// poles lie on `axes[0]`.
+fn ellipsoid_in(s: &mut Surface3, centre: [f64; 3], axes: [[f64; 3]; 3], radii: [f64; 3]) {
     let big = radii.iter().copied().fold(0.0, f64::max);
     let segments = ((2.0 * PI * big / SPACING).ceil() as usize).max(12);
     let rings = ((PI * big / SPACING).ceil() as usize).max(6);
     lat_long(s, rings, segments, |theta, phi| {
         let (st, ct) = libm::sincos(theta);
         let (sp, cp) = libm::sincos(phi);
-        [
-            centre[0] + radii[0] * st * cp,
-            centre[1] + radii[1] * ct,
-            centre[2] + radii[2] * st * sp,
-        ]
+        let local = [radii[0] * ct, radii[1] * st * sp, radii[2] * st * cp];
+        let mut p = centre;
+        for (k, axis) in axes.iter().enumerate() {
+            for c in 0..3 {
+                p[c] += local[k] * axis[c];
+            }
+        }
+        p
     });
 }
 
-/// Appends a closed capsule (cylinder with hemispherical caps) from `a` to `b` with `radius`.
-fn capsule(s: &mut Surface3, a: [f64; 3], b: [f64; 3], radius: f64) {
-    let axis = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
-    let len = (axis[0] * axis[0] + axis[1] * axis[1] + axis[2] * axis[2]).sqrt();
+/// Appends a closed capsule from `a` (radius `ra`) to `b` (radius `rb`): a cone frustum with
+/// hemispherical caps. Convex when `ra == rb`; the skin's tapered limbs only need to be closed.
+fn capsule(s: &mut Surface3, a: [f64; 3], b: [f64; 3], ra: f64, rb: f64) {
+    let axis = sub(b, a);
+    let len = norm(axis);
     let w = axis.map(|c| c / len);
     // Any unit vector orthogonal to w, then the third by a cross product.
     let helper = if w[0].abs() < 0.9 {
@@ -83,22 +329,23 @@ fn capsule(s: &mut Surface3, a: [f64; 3], b: [f64; 3], radius: f64) {
     };
     let u = normalise(cross(w, helper));
     let v = cross(w, u);
-    let segments = ((2.0 * PI * radius / SPACING).ceil() as usize).max(12);
-    // Parameter t runs over cap (pi/2 * r), body (len), cap (pi/2 * r).
-    let cap = 0.5 * PI * radius;
-    let total = 2.0 * cap + len;
+    let segments = ((2.0 * PI * ra.max(rb) / SPACING).ceil() as usize).max(12);
+    // Parameter t runs over cap (pi/2 * ra), body (len), cap (pi/2 * rb).
+    let (cap_a, cap_b) = (0.5 * PI * ra, 0.5 * PI * rb);
+    let total = cap_a + len + cap_b;
     let rings = ((total / SPACING).ceil() as usize).max(6);
     lat_long(s, rings, segments, |theta, phi| {
         let t = theta / PI * total;
         // Position along the axis from `a`, and distance from the axis.
-        let (along, r) = if t < cap {
-            let alpha = t / radius;
-            (-radius * libm::cos(alpha), radius * libm::sin(alpha))
-        } else if t > cap + len {
-            let alpha = (total - t) / radius;
-            (len + radius * libm::cos(alpha), radius * libm::sin(alpha))
+        let (along, r) = if t < cap_a {
+            let alpha = t / ra;
+            (-ra * libm::cos(alpha), ra * libm::sin(alpha))
+        } else if t > cap_a + len {
+            let alpha = (total - t) / rb;
+            (len + rb * libm::cos(alpha), rb * libm::sin(alpha))
         } else {
-            (t - cap, radius)
+            let f = (t - cap_a) / len;
+            (t - cap_a, ra + (rb - ra) * f)
         };
         let (sp, cp) = libm::sincos(phi);
         let mut p = [0.0; 3];
@@ -149,6 +396,18 @@ fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
 }
 
 fn normalise(a: [f64; 3]) -> [f64; 3] {
-    let n = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
+    let n = norm(a);
     a.map(|c| c / n)
+}
+
+fn norm(a: [f64; 3]) -> f64 {
+    dot(a, a).sqrt()
+}
+
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
 }

@@ -6,6 +6,13 @@
 //! counter-clockwise triangles; extra keys are allowed and ignored on read. The reader rejects
 //! non-finite coordinates, out-of-range or repeated indices and clockwise or degenerate triangles,
 //! naming the offending entry.
+//!
+//! Two optional keys carry material regions: `"regions": [t0, t1, ...]`, one non-negative
+//! integer tag per triangle, and `"region_names": ["soft-tissue", "femur", ...]`, the name of
+//! each tag. Absent, the mesh is one region (tag 0). When present, `regions` has one entry per
+//! triangle and every tag is below the number of names (when names are given). The Gmsh export
+//! writes tag `k` as physical tag `k + 1` with a `$PhysicalNames` section; the VTK export writes
+//! an integer `region` cell scalar.
 
 use std::fmt::Write as _;
 use std::io::Write as _;
@@ -144,7 +151,20 @@ pub fn mesh_to_json(mesh: &Mesh2) -> String {
         let sep = if i == 0 { "\n    " } else { ",\n    " };
         let _ = write!(s, "{sep}[{},{},{}]", t[0], t[1], t[2]);
     }
-    s.push_str("\n  ]\n}\n");
+    s.push_str("\n  ]");
+    if !mesh.regions.is_empty() {
+        s.push_str(",\n  \"regions\": [");
+        for (i, r) in mesh.regions.iter().enumerate() {
+            let sep = if i == 0 { "" } else { "," };
+            let _ = write!(s, "{sep}{r}");
+        }
+        s.push(']');
+    }
+    if !mesh.region_names.is_empty() {
+        let names = serde_json::to_string(&mesh.region_names).unwrap_or_default();
+        let _ = write!(s, ",\n  \"region_names\": {names}");
+    }
+    s.push_str("\n}\n");
     s
 }
 
@@ -209,13 +229,53 @@ pub fn validate_mesh(mesh: &Mesh2) -> std::result::Result<(), (String, String)> 
             ));
         }
     }
+    validate_regions(mesh)
+}
+
+/// Checks the optional region keys: one tag per triangle, every tag below the number of names
+/// (when names are given); on failure returns `(location, message)`.
+pub fn validate_regions(mesh: &Mesh2) -> std::result::Result<(), (String, String)> {
+    let (m, tags, names) = (
+        mesh.triangles.len(),
+        mesh.regions.len(),
+        mesh.region_names.len(),
+    );
+    if tags != 0 && tags != m {
+        return Err((
+            "regions".into(),
+            format!("{tags} region tags for {m} triangles (one per triangle needed)"),
+        ));
+    }
+    if names != 0
+        && let Some((t, k)) = mesh
+            .regions
+            .iter()
+            .enumerate()
+            .find(|&(_, &k)| k as usize >= names)
+    {
+        return Err((
+            format!("regions[{t}]"),
+            format!("tag {k} has no name ({names} region_names)"),
+        ));
+    }
     Ok(())
 }
 
-/// Gmsh `.msh` 2.2 ASCII text of `mesh` (z = 0, 3-node triangles, physical and elementary tag 1).
+/// Gmsh `.msh` 2.2 ASCII text of `mesh` (z = 0, 3-node triangles). A triangle of region `k`
+/// has physical and elementary tag `k + 1` (Gmsh tags start at 1; an untagged mesh is all 1);
+/// named regions get a `$PhysicalNames` section (dimension 2).
 pub fn mesh_to_gmsh(mesh: &Mesh2) -> String {
     let mut s = String::new();
-    s.push_str("$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n");
+    s.push_str("$MeshFormat\n2.2 0 8\n$EndMeshFormat\n");
+    if !mesh.region_names.is_empty() {
+        let _ = writeln!(s, "$PhysicalNames\n{}", mesh.region_names.len());
+        for (k, name) in mesh.region_names.iter().enumerate() {
+            // Gmsh names are quoted strings: a quote inside a name would end it early.
+            let _ = writeln!(s, "2 {} \"{}\"", k + 1, name.replace('"', "'"));
+        }
+        s.push_str("$EndPhysicalNames\n");
+    }
+    s.push_str("$Nodes\n");
     let _ = writeln!(s, "{}", mesh.vertices.len());
     for (i, v) in mesh.vertices.iter().enumerate() {
         let _ = writeln!(s, "{} {:?} {:?} 0", i + 1, v[0], v[1]);
@@ -223,9 +283,10 @@ pub fn mesh_to_gmsh(mesh: &Mesh2) -> String {
     s.push_str("$EndNodes\n$Elements\n");
     let _ = writeln!(s, "{}", mesh.triangles.len());
     for (i, t) in mesh.triangles.iter().enumerate() {
+        let tag = u64::from(mesh.region_of(i)) + 1;
         let _ = writeln!(
             s,
-            "{} 2 2 1 1 {} {} {}",
+            "{} 2 2 {tag} {tag} {} {} {}",
             i + 1,
             t[0] + 1,
             t[1] + 1,
@@ -241,7 +302,8 @@ pub fn write_gmsh(path: &Path, mesh: &Mesh2) -> Result<()> {
     write_atomic(path, mesh_to_gmsh(mesh).as_bytes())
 }
 
-/// Legacy VTK ASCII text of `mesh` (unstructured grid of triangles, z = 0).
+/// Legacy VTK ASCII text of `mesh` (unstructured grid of triangles, z = 0); a tagged mesh also
+/// gets `CELL_DATA` with an integer `region` scalar (the tag of each triangle).
 pub fn mesh_to_vtk(mesh: &Mesh2) -> String {
     let mut s = String::new();
     s.push_str("# vtk DataFile Version 3.0\nfem2d mesh\nASCII\nDATASET UNSTRUCTURED_GRID\n");
@@ -257,6 +319,15 @@ pub fn mesh_to_vtk(mesh: &Mesh2) -> String {
     let _ = writeln!(s, "CELL_TYPES {m}");
     for _ in 0..m {
         s.push_str("5\n");
+    }
+    if !mesh.regions.is_empty() {
+        let _ = writeln!(
+            s,
+            "CELL_DATA {m}\nSCALARS region int 1\nLOOKUP_TABLE default"
+        );
+        for t in 0..m {
+            let _ = writeln!(s, "{}", mesh.region_of(t));
+        }
     }
     s
 }

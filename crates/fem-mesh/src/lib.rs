@@ -8,12 +8,16 @@
 //! 3. [`alpha`]: alpha shape of the 2D points (radius convention, suggested radius), boundary
 //!    as polygons with holes;
 //! 4. [`simplify`]: Douglas-Peucker with a validity guarantee;
-//! 5. [`triangulate`]: constrained Delaunay with max-area / min-angle refinement (spade);
+//! 5. [`triangulate`]: constrained Delaunay with max-area / min-angle refinement (spade),
+//!    optionally with inner regions (bones) whose edges the triangles follow, each triangle
+//!    tagged with its region;
 //! 6. [`quality`]: the mesh quality report.
 //!
 //! [`pipeline`] chains them with per-stage timings; [`io`] reads and writes the mesh JSON contract and exports Gmsh and VTK files;
-//! [`preview`] draws each stage; [`body`] builds a procedural human body so everything runs
-//! without an outside model file.
+//! [`preview`] draws each stage; [`body`] builds a procedural human body and its skeleton so
+//! everything runs without an outside model file
+//! ([`pipeline::mesh_surface_with_skeleton`] meshes the bones as regions); [`shank`] is a
+//! lower-leg section with its tibia, for close-up studies of the shin.
 //!
 //! ```
 //! use fem_mesh::{body::human_body, pipeline::{mesh_surface, PipelineParams}};
@@ -38,13 +42,14 @@ pub mod load;
 pub mod pipeline;
 pub mod preview;
 pub mod quality;
+pub mod shank;
 pub mod simplify;
 
 pub mod triangulate;
 pub mod types;
 
 pub use error::{MeshError, Result};
-pub use types::{Mesh2, PolygonWithHoles, Surface3};
+pub use types::{Bone, InnerRegion, Mesh2, PolygonWithHoles, Skeleton, Surface3};
 
 /// The types most programs need, in one import: `use fem_mesh::prelude::*;`.
 ///
@@ -53,14 +58,16 @@ pub use types::{Mesh2, PolygonWithHoles, Surface3};
 /// crate's error.
 pub mod prelude {
     pub use crate::alpha::AlphaParams;
-    pub use crate::body::human_body;
+    pub use crate::body::{human_body, human_skeleton};
     pub use crate::camera::{Camera, Projection};
     pub use crate::io::{read_mesh_json, write_mesh_json};
-    pub use crate::pipeline::{PipelineOutput, PipelineParams, mesh_model_file, mesh_surface};
+    pub use crate::pipeline::{
+        PipelineOutput, PipelineParams, mesh_model_file, mesh_surface, mesh_surface_with_skeleton,
+    };
     pub use crate::quality::QualityReport;
     pub use crate::simplify::SimplifyParams;
-    pub use crate::triangulate::TriangulateParams;
-    pub use crate::{Mesh2, MeshError, PolygonWithHoles, Surface3};
+    pub use crate::triangulate::{TriangulateParams, triangulate_regions};
+    pub use crate::{InnerRegion, Mesh2, MeshError, PolygonWithHoles, Skeleton, Surface3};
 }
 
 // The README's example runs as a doctest.

@@ -133,6 +133,23 @@ pub fn boundary_hausdorff(a: &[PolygonWithHoles], b: &[PolygonWithHoles]) -> f64
     directed(a, b).max(directed(b, a))
 }
 
+/// Smallest distance between the boundaries of `a` and `b` (model units; exact for boundaries
+/// that do not cross: the nearest pair is a vertex of one and an edge of the other).
+pub(crate) fn boundary_clearance(a: &[PolygonWithHoles], b: &[PolygonWithHoles]) -> f64 {
+    let one_way = |a: &[PolygonWithHoles], b: &[PolygonWithHoles]| {
+        rings(a)
+            .flatten()
+            .map(|&x| {
+                rings(b)
+                    .flat_map(|r| (0..r.len()).map(move |j| (r[j], r[(j + 1) % r.len()])))
+                    .map(|(u, v)| segment_distance(x, u, v))
+                    .fold(f64::INFINITY, f64::min)
+            })
+            .fold(f64::INFINITY, f64::min)
+    };
+    one_way(a, b).min(one_way(b, a))
+}
+
 fn rings(p: &[PolygonWithHoles]) -> impl Iterator<Item = &Vec<[f64; 2]>> {
     p.iter()
         .flat_map(|p| std::iter::once(&p.outer).chain(&p.holes))

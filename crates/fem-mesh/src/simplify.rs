@@ -47,7 +47,7 @@ pub struct SimplifyReport {
     pub notes: Vec<String>,
 }
 
-fn to_geo(polygon: &PolygonWithHoles) -> Polygon<f64> {
+pub(crate) fn to_geo(polygon: &PolygonWithHoles) -> Polygon<f64> {
     let ring = |r: &Vec<[f64; 2]>| {
         let mut coords: Vec<Coord<f64>> = r.iter().map(|p| Coord { x: p[0], y: p[1] }).collect();
         if let Some(&first) = coords.first() {
@@ -69,7 +69,7 @@ fn open_ring(ls: &LineString<f64>) -> Vec<[f64; 2]> {
     v
 }
 
-fn from_geo(polygon: &Polygon<f64>) -> PolygonWithHoles {
+pub(crate) fn from_geo(polygon: &Polygon<f64>) -> PolygonWithHoles {
     PolygonWithHoles {
         outer: open_ring(polygon.exterior()),
         holes: polygon.interiors().iter().map(open_ring).collect(),

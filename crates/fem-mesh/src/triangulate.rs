@@ -13,7 +13,7 @@ use spade::{
 
 use crate::error::{MeshError, Result};
 use crate::quality::triangle_angles_deg;
-use crate::types::{Mesh2, PolygonWithHoles};
+use crate::types::{InnerRegion, Mesh2, PolygonWithHoles, orient};
 
 /// Parameters of [`triangulate`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -86,6 +86,311 @@ pub fn triangulate(
     polygons: &[PolygonWithHoles],
     params: &TriangulateParams,
 ) -> Result<(Mesh2, TriangulateReport)> {
+    check_params(params)?;
+    let mut rings = Rings::default();
+    rings.push(polygons, "", false)?;
+    let Rings {
+        vertices,
+        edges,
+        smallest_input_angle_deg,
+    } = rings;
+    if vertices.is_empty() {
+        return Err(MeshError::invalid(
+            "triangulate",
+            "no polygon to triangulate",
+        ));
+    }
+    let thin = thin_polygon(polygons);
+    crate::guard::guarded("triangulate", || {
+        mesh_rings(
+            vertices,
+            edges,
+            smallest_input_angle_deg,
+            params,
+            thin,
+            None,
+        )
+    })?
+}
+
+/// Name of region 0, the outer domain around the inner regions, in meshes from
+/// [`triangulate_regions`].
+pub const OUTER_REGION_NAME: &str = "soft-tissue";
+
+/// Triangulates the `outer` polygons with the `inner` regions' rings as constraint edges, so
+/// every triangle lies in exactly one region, and tags the triangles: region 0 is the outer
+/// domain outside every inner region (named [`OUTER_REGION_NAME`]), region `k + 1` is
+/// `inner[k]` (named after it). Refinement splits the region boundaries where quality needs it
+/// but never moves them, so each region's meshed area is its polygons' area up to round-off.
+///
+/// Inner polygons must lie strictly inside the outer domain (no vertex outside, no edge touching
+/// or crossing an outer ring) and must not touch or overlap each other (one inside a hole of
+/// another is fine); otherwise a one-line error names the region. With no inner region this is
+/// [`triangulate`] with every triangle tagged 0.
+///
+/// The refinement runs over a rectangular frame around the input, a tenth of its extent away
+/// (spade's inside/outside parity rule would count every inner region as a hole), and the
+/// faces outside the outer domain are dropped afterwards; the report's Steiner count includes
+/// the dropped ones.
+pub fn triangulate_regions(
+    outer: &[PolygonWithHoles],
+    inner: &[InnerRegion],
+    params: &TriangulateParams,
+) -> Result<(Mesh2, TriangulateReport)> {
+    if inner.is_empty() {
+        let (mut mesh, report) = triangulate(outer, params)?;
+        mesh.regions = vec![0; mesh.triangles.len()];
+        mesh.region_names = vec![OUTER_REGION_NAME.to_owned()];
+        return Ok((mesh, report));
+    }
+    check_params(params)?;
+    let mut rings = Rings::default();
+    rings.push(outer, "", false)?;
+    let outer_vertices = rings.vertices.len();
+    if rings.vertices.is_empty() {
+        return Err(MeshError::invalid(
+            "triangulate",
+            "no polygon to triangulate",
+        ));
+    }
+    for region in inner {
+        if region.polygons.is_empty() {
+            return Err(MeshError::invalid(
+                "triangulate",
+                format!("inner region {:?} has no polygon", region.name),
+            ));
+        }
+        rings.push(
+            &region.polygons,
+            &format!("inner region {:?}: ", region.name),
+            true,
+        )?;
+    }
+    check_inner_regions(outer, inner)?;
+    let Rings {
+        mut vertices,
+        mut edges,
+        smallest_input_angle_deg,
+    } = rings;
+    // A frame around the domain, a tenth of its extent away, becomes the convex hull: the
+    // outside that refinement sees is then an ordinary region, not slivers between the hull and
+    // straight stretches of the outline (whose refinement would chop those into specks).
+    let b = outer
+        .iter()
+        .map(|p| bbox(&p.outer))
+        .fold(bbox(&[]), |a, b| {
+            [
+                a[0].min(b[0]),
+                a[1].min(b[1]),
+                a[2].max(b[2]),
+                a[3].max(b[3]),
+            ]
+        });
+    let margin = 0.1 * (b[2] - b[0]).max(b[3] - b[1]);
+    let base = vertices.len();
+    for [x, y] in [
+        [b[0] - margin, b[1] - margin],
+        [b[2] + margin, b[1] - margin],
+        [b[2] + margin, b[3] + margin],
+        [b[0] - margin, b[3] + margin],
+    ] {
+        vertices.push(Point2::new(x, y));
+    }
+    edges.extend((0..4).map(|i| [base + i, base + (i + 1) % 4]));
+    let thin = thin_polygon(outer);
+    let (mut mesh, report) = crate::guard::guarded("triangulate", || {
+        mesh_rings(
+            vertices,
+            edges,
+            smallest_input_angle_deg,
+            params,
+            thin,
+            Some(outer_vertices),
+        )
+    })??;
+    let inner_boxes: Vec<Vec<[f64; 4]>> = inner
+        .iter()
+        .map(|r| r.polygons.iter().map(|p| bbox(&p.outer)).collect())
+        .collect();
+    mesh.regions = (0..mesh.triangles.len())
+        .map(|t| {
+            let [a, b, c] = mesh.corners(t);
+            let centroid = [(a[0] + b[0] + c[0]) / 3.0, (a[1] + b[1] + c[1]) / 3.0];
+            inner
+                .iter()
+                .zip(&inner_boxes)
+                .position(|(region, boxes)| {
+                    region
+                        .polygons
+                        .iter()
+                        .zip(boxes)
+                        .any(|(q, b)| in_box(centroid, b) && q.contains(centroid))
+                })
+                .map_or(0, |k| k as u32 + 1)
+        })
+        .collect();
+    mesh.region_names = std::iter::once(OUTER_REGION_NAME.to_owned())
+        .chain(inner.iter().map(|r| r.name.clone()))
+        .collect();
+    Ok((mesh, report))
+}
+
+/// Checks that every inner polygon lies strictly inside the outer domain and that no two inner
+/// polygons touch or overlap; the error names the region(s) and a place.
+pub(crate) fn check_inner_regions(outer: &[PolygonWithHoles], inner: &[InnerRegion]) -> Result<()> {
+    let outer_rings: Vec<(&Vec<[f64; 2]>, [f64; 4])> = outer
+        .iter()
+        .flat_map(PolygonWithHoles::rings)
+        .map(|r| (r, bbox(r)))
+        .collect();
+    // Every inner polygon, with its region's name.
+    let polygons: Vec<(&str, &PolygonWithHoles, [f64; 4])> = inner
+        .iter()
+        .flat_map(|r| {
+            r.polygons
+                .iter()
+                .map(|p| (r.name.as_str(), p, bbox(&p.outer)))
+        })
+        .collect();
+    for &(name, polygon, _) in &polygons {
+        for ring in polygon.rings() {
+            if let Some(v) = ring.iter().find(|&&v| !outer.iter().any(|q| q.contains(v))) {
+                return Err(MeshError::invalid(
+                    "triangulate",
+                    format!(
+                        "inner region {name:?} is not inside the outer domain: its vertex ({}, {}) lies outside",
+                        v[0], v[1]
+                    ),
+                ));
+            }
+            let b = bbox(ring);
+            for &(other, ob) in &outer_rings {
+                if let Some(p) = rings_touch(ring, &b, other, &ob) {
+                    return Err(MeshError::invalid(
+                        "triangulate",
+                        format!(
+                            "inner region {name:?} touches or crosses the outer boundary near ({}, {})",
+                            p[0], p[1]
+                        ),
+                    ));
+                }
+            }
+        }
+    }
+    for (i, &(name_a, a, box_a)) in polygons.iter().enumerate() {
+        for &(name_b, b, box_b) in &polygons[i + 1..] {
+            if !boxes_overlap(&box_a, &box_b) {
+                continue;
+            }
+            let overlap = |p: [f64; 2]| {
+                MeshError::invalid(
+                    "triangulate",
+                    format!(
+                        "inner regions {name_a:?} and {name_b:?} touch or overlap near ({}, {})",
+                        p[0], p[1]
+                    ),
+                )
+            };
+            for ra in a.rings() {
+                let ba = bbox(ra);
+                for rb in b.rings() {
+                    if let Some(p) = rings_touch(ra, &ba, rb, &bbox(rb)) {
+                        return Err(overlap(p));
+                    }
+                }
+            }
+            // No boundary contact: overlapping means one lies inside the other.
+            if b.contains(a.outer[0]) {
+                return Err(overlap(a.outer[0]));
+            }
+            if a.contains(b.outer[0]) {
+                return Err(overlap(b.outer[0]));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Bounding box `[xmin, ymin, xmax, ymax]` of a ring.
+fn bbox(ring: &[[f64; 2]]) -> [f64; 4] {
+    ring.iter().fold(
+        [
+            f64::INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NEG_INFINITY,
+        ],
+        |b, p| {
+            [
+                b[0].min(p[0]),
+                b[1].min(p[1]),
+                b[2].max(p[0]),
+                b[3].max(p[1]),
+            ]
+        },
+    )
+}
+
+fn in_box(p: [f64; 2], b: &[f64; 4]) -> bool {
+    p[0] >= b[0] && p[0] <= b[2] && p[1] >= b[1] && p[1] <= b[3]
+}
+
+fn boxes_overlap(a: &[f64; 4], b: &[f64; 4]) -> bool {
+    a[0] <= b[2] && b[0] <= a[2] && a[1] <= b[3] && b[1] <= a[3]
+}
+
+/// A point where an edge of ring `a` touches or crosses an edge of ring `b` (boxes given).
+fn rings_touch(
+    a: &[[f64; 2]],
+    box_a: &[f64; 4],
+    b: &[[f64; 2]],
+    box_b: &[f64; 4],
+) -> Option<[f64; 2]> {
+    if !boxes_overlap(box_a, box_b) {
+        return None;
+    }
+    let (n, m) = (a.len(), b.len());
+    for i in 0..n {
+        let (p, q) = (a[i], a[(i + 1) % n]);
+        let e = bbox(&[p, q]);
+        if !boxes_overlap(&e, box_b) {
+            continue;
+        }
+        for j in 0..m {
+            let (r, s) = (b[j], b[(j + 1) % m]);
+            if boxes_overlap(&e, &bbox(&[r, s])) && segments_touch(p, q, r, s) {
+                return Some(p);
+            }
+        }
+    }
+    None
+}
+
+/// Whether the closed segments `pq` and `rs` share a point.
+fn segments_touch(p: [f64; 2], q: [f64; 2], r: [f64; 2], s: [f64; 2]) -> bool {
+    let d1 = orient(r, s, p);
+    let d2 = orient(r, s, q);
+    let d3 = orient(p, q, r);
+    let d4 = orient(p, q, s);
+    if ((d1 > 0.0 && d2 < 0.0) || (d1 < 0.0 && d2 > 0.0))
+        && ((d3 > 0.0 && d4 < 0.0) || (d3 < 0.0 && d4 > 0.0))
+    {
+        return true;
+    }
+    let on = |a: [f64; 2], b: [f64; 2], c: [f64; 2]| {
+        c[0] >= a[0].min(b[0])
+            && c[0] <= a[0].max(b[0])
+            && c[1] >= a[1].min(b[1])
+            && c[1] <= a[1].max(b[1])
+    };
+    (d1 == 0.0 && on(r, s, p))
+        || (d2 == 0.0 && on(r, s, q))
+        || (d3 == 0.0 && on(p, q, r))
+        || (d4 == 0.0 && on(p, q, s))
+}
+
+/// Refuses unusable refinement parameters.
+fn check_params(params: &TriangulateParams) -> Result<()> {
     if let Some(a) = params.max_area
         && !(a.is_finite() && a > 0.0)
     {
@@ -112,39 +417,11 @@ pub fn triangulate(
             ),
         ));
     }
-    let mut vertices: Vec<Point2<f64>> = Vec::new();
-    let mut edges: Vec<[usize; 2]> = Vec::new();
-    let mut smallest_input_angle_deg = 180.0f64;
-    for polygon in polygons {
-        for ring in polygon.rings() {
-            if ring.len() < 3 {
-                return Err(MeshError::invalid(
-                    "triangulate",
-                    format!("ring with {} vertices", ring.len()),
-                ));
-            }
-            let base = vertices.len();
-            let n = ring.len();
-            for (i, p) in ring.iter().enumerate() {
-                if !(p[0].is_finite() && p[1].is_finite()) {
-                    return Err(MeshError::invalid(
-                        "triangulate",
-                        format!("ring vertex {i} is not finite: {p:?}"),
-                    ));
-                }
-                vertices.push(Point2::new(p[0], p[1]));
-                edges.push([base + i, base + (i + 1) % n]);
-                let [a, b, c] = [ring[(i + n - 1) % n], *p, ring[(i + 1) % n]];
-                smallest_input_angle_deg = smallest_input_angle_deg.min(corner_angle_deg(a, b, c));
-            }
-        }
-    }
-    if vertices.is_empty() {
-        return Err(MeshError::invalid(
-            "triangulate",
-            "no polygon to triangulate",
-        ));
-    }
+    Ok(())
+}
+
+/// The error for the first (nearly) collinear polygon, if any.
+fn thin_polygon(polygons: &[PolygonWithHoles]) -> Option<MeshError> {
     // A (nearly) collinear outline: nothing but slivers can mesh it, however long the
     // refinement runs. Refused per polygon, by its area against the square of its extent
     // (after the crossing-edges check: a bow tie's area is zero too).
@@ -170,9 +447,63 @@ pub fn triangulate(
             ));
         }
     }
-    crate::guard::guarded("triangulate", || {
-        mesh_rings(vertices, edges, smallest_input_angle_deg, params, thin)
-    })?
+    thin
+}
+
+/// The constraint rings of a triangulation: vertices, closed ring edges and the smallest
+/// angle between two consecutive edges.
+struct Rings {
+    vertices: Vec<Point2<f64>>,
+    edges: Vec<[usize; 2]>,
+    smallest_input_angle_deg: f64,
+}
+
+impl Default for Rings {
+    fn default() -> Self {
+        Self {
+            vertices: Vec::new(),
+            edges: Vec::new(),
+            smallest_input_angle_deg: 180.0,
+        }
+    }
+}
+
+impl Rings {
+    /// Appends every ring of `polygons`; `what` names them in errors (empty for the outer
+    /// domain).
+    /// `both_sides`: the rings separate two meshed regions (inner regions), so the angle on
+    /// either side counts.
+    fn push(&mut self, polygons: &[PolygonWithHoles], what: &str, both_sides: bool) -> Result<()> {
+        for polygon in polygons {
+            for ring in polygon.rings() {
+                if ring.len() < 3 {
+                    return Err(MeshError::invalid(
+                        "triangulate",
+                        format!("{what}ring with {} vertices", ring.len()),
+                    ));
+                }
+                let base = self.vertices.len();
+                let n = ring.len();
+                for (i, p) in ring.iter().enumerate() {
+                    if !(p[0].is_finite() && p[1].is_finite()) {
+                        return Err(MeshError::invalid(
+                            "triangulate",
+                            format!("{what}ring vertex {i} is not finite: {p:?}"),
+                        ));
+                    }
+                    self.vertices.push(Point2::new(p[0], p[1]));
+                    self.edges.push([base + i, base + (i + 1) % n]);
+                    let [a, b, c] = [ring[(i + n - 1) % n], *p, ring[(i + 1) % n]];
+                    let mut angle = corner_angle_deg(a, b, c);
+                    if both_sides {
+                        angle = angle.min(360.0 - angle);
+                    }
+                    self.smallest_input_angle_deg = self.smallest_input_angle_deg.min(angle);
+                }
+            }
+        }
+        Ok(())
+    }
 }
 
 /// The triangulation and refinement proper (spade), run under [`crate::guard::guarded`].
@@ -182,7 +513,16 @@ fn mesh_rings(
     smallest_input_angle_deg: f64,
     params: &TriangulateParams,
     thin: Option<MeshError>,
+    outer_vertices: Option<usize>,
 ) -> Result<(Mesh2, TriangulateReport)> {
+    // The outer rings' input vertices (the first `outer_vertices` of the input), by position:
+    // spade's bulk load does not keep vertex indices.
+    let outer_positions: Option<std::collections::HashSet<[u64; 2]>> = outer_vertices.map(|n| {
+        vertices[..n]
+            .iter()
+            .map(|p| [p.x.to_bits(), p.y.to_bits()])
+            .collect()
+    });
     let mut conflicts = 0usize;
     let mut cdt: ConstrainedDelaunayTriangulation<Point2<f64>> =
         ConstrainedDelaunayTriangulation::try_bulk_load_cdt(vertices, edges, |_| conflicts += 1)
@@ -197,8 +537,12 @@ fn mesh_rings(
         return Err(e);
     }
     let initial = cdt.num_vertices();
+    // Without inner regions, spade's parity rule tells inside from outside. Inner regions'
+    // rings would flip that parity (every region would count as a hole), so then every face is
+    // refined and the faces of the domain are picked afterwards by a parity of the outer rings
+    // alone (`outer_domain_faces`).
     let mut refinement = RefinementParameters::<f64>::new()
-        .exclude_outer_faces(true)
+        .exclude_outer_faces(outer_positions.is_none())
         .with_angle_limit(AngleLimit::from_deg(params.min_angle_deg))
         .with_max_additional_vertices(params.max_steiner_points);
     if let Some(a) = params.max_area {
@@ -208,6 +552,12 @@ fn mesh_rings(
     let mut excluded = vec![false; cdt.num_all_faces()];
     for f in &result.excluded_faces {
         excluded[f.index()] = true;
+    }
+    if let Some(outer) = &outer_positions {
+        excluded = outer_domain_faces(&cdt, outer)
+            .into_iter()
+            .map(|inside| !inside)
+            .collect();
     }
     let mut index = vec![usize::MAX; cdt.num_vertices()];
     let mut mesh = Mesh2::default();
@@ -273,6 +623,76 @@ fn mesh_rings(
             .is_none_or(|a| max_area <= a * (1.0 + CHECK_SLACK)),
     };
     Ok((mesh, report))
+}
+
+/// Which faces (by index) lie inside the outer rings: the parity of the outer-ring edges
+/// crossed on the way from the convex hull (inner regions' rings do not count). An outer-ring
+/// edge is a constraint edge between two vertices of the outer rings: the input vertices at
+/// `outer` and the Steiner points refinement put on their edges, found by walking constraint
+/// edges from them (rings are disjoint, so the walk never reaches an inner ring).
+fn outer_domain_faces(
+    cdt: &ConstrainedDelaunayTriangulation<Point2<f64>>,
+    outer: &std::collections::HashSet<[u64; 2]>,
+) -> Vec<bool> {
+    let mut on_outer = vec![false; cdt.num_vertices()];
+    let mut stack = Vec::new();
+    for v in cdt.vertices() {
+        let p = v.position();
+        if outer.contains(&[p.x.to_bits(), p.y.to_bits()]) {
+            on_outer[v.fix().index()] = true;
+            stack.push(v.fix());
+        }
+    }
+    while let Some(v) = stack.pop() {
+        for e in cdt.vertex(v).out_edges() {
+            let w = e.to().fix();
+            if e.is_constraint_edge() && !on_outer[w.index()] {
+                on_outer[w.index()] = true;
+                stack.push(w);
+            }
+        }
+    }
+    // 0-1 breadth-first search: crossing an outer-ring edge costs one layer.
+    let mut layer = vec![usize::MAX; cdt.num_all_faces()];
+    let mut queue = std::collections::VecDeque::new();
+    let crossing_cost = |e: &spade::handles::DirectedEdgeHandle<'_, _, _, _, _>| {
+        usize::from(
+            e.is_constraint_edge()
+                && on_outer[e.from().fix().index()]
+                && on_outer[e.to().fix().index()],
+        )
+    };
+    for hull in cdt.convex_hull() {
+        let e = hull.rev();
+        queue.push_back((e.fix(), crossing_cost(&e)));
+    }
+    while let Some((edge, depth)) = queue.pop_front() {
+        let e = cdt.directed_edge(edge);
+        let Some(face) = e.face().as_inner() else {
+            continue;
+        };
+        let i = face.fix().index();
+        if layer[i] <= depth {
+            continue;
+        }
+        layer[i] = depth;
+        for side in face.adjacent_edges() {
+            let next = side.rev();
+            if next.face().is_outer() {
+                continue;
+            }
+            let cost = crossing_cost(&next);
+            if cost == 0 {
+                queue.push_front((next.fix(), depth));
+            } else {
+                queue.push_back((next.fix(), depth + 1));
+            }
+        }
+    }
+    layer
+        .into_iter()
+        .map(|d| d != usize::MAX && d % 2 == 1)
+        .collect()
 }
 
 /// Angle of the meshed region at ring corner `b` of the ring `a -> b -> c` (degrees, in

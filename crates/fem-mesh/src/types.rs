@@ -75,6 +75,48 @@ impl PolygonWithHoles {
     }
 }
 
+/// A named material region inside the meshed domain (a bone inside soft tissue): one or more
+/// disjoint polygons, meshed by [`crate::triangulate::triangulate_regions`] with their edges as
+/// constraints, so every triangle lies in exactly one region.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct InnerRegion {
+    /// The region's name (the mesh's `region_names` entry).
+    pub name: String,
+    /// Its polygons (outer rings counter-clockwise, holes clockwise), mutually disjoint.
+    pub polygons: Vec<PolygonWithHoles>,
+}
+
+impl InnerRegion {
+    /// Enclosed area of all the region's polygons (model units squared).
+    pub fn area(&self) -> f64 {
+        self.polygons.iter().map(PolygonWithHoles::area).sum()
+    }
+
+    /// Whether `p` lies in one of the region's polygons.
+    pub fn contains(&self, p: [f64; 2]) -> bool {
+        self.polygons.iter().any(|q| q.contains(p))
+    }
+}
+
+/// A bone of a [`Skeleton`]: a name and its closed convex 3D parts (a femur's shaft and head,
+/// or the left and right humerus under one name).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Bone {
+    /// The bone's name, which becomes its region name in the mesh.
+    pub name: String,
+    /// Closed convex surfaces, in the same model units and frame as the skin.
+    pub parts: Vec<Surface3>,
+}
+
+/// The bones inside a body surface, meshed as inner regions by
+/// [`crate::pipeline::mesh_surface_with_skeleton`]. Each part must be convex (its outline in a
+/// view is the convex hull of its projected vertices).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Skeleton {
+    /// The bones; bone `k` becomes region `k + 1` (region 0 is the soft tissue).
+    pub bones: Vec<Bone>,
+}
+
 /// Signed area of an open ring (shoelace formula): positive when counter-clockwise.
 pub fn ring_signed_area(ring: &[[f64; 2]]) -> f64 {
     let n = ring.len();
@@ -113,6 +155,14 @@ pub struct Mesh2 {
     pub vertices: Vec<[f64; 2]>,
     /// Triangles as 0-based vertex indices, counter-clockwise.
     pub triangles: Vec<[usize; 3]>,
+    /// Material region tag of each triangle (JSON key `"regions"`), or empty when the mesh is
+    /// untagged (every triangle is then region 0). When present, one tag per triangle.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub regions: Vec<u32>,
+    /// Name of each region tag: `region_names[k]` names tag `k` (JSON key `"region_names"`);
+    /// empty when the regions are unnamed.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub region_names: Vec<String>,
 }
 
 impl Mesh2 {
@@ -130,6 +180,46 @@ impl Mesh2 {
     /// Sum of the triangle areas.
     pub fn area(&self) -> f64 {
         (0..self.triangles.len()).map(|t| self.signed_area(t)).sum()
+    }
+
+    /// Region tag of triangle `t` (0 when the mesh is untagged).
+    pub fn region_of(&self, t: usize) -> u32 {
+        self.regions.get(t).copied().unwrap_or(0)
+    }
+
+    /// Number of regions: the names' count, or one more than the largest tag (1 when untagged).
+    pub fn region_count(&self) -> usize {
+        let tags = self.regions.iter().max().map_or(1, |&k| k as usize + 1);
+        tags.max(self.region_names.len())
+    }
+
+    /// The tag named `name`, if any.
+    pub fn region_index(&self, name: &str) -> Option<u32> {
+        self.region_names
+            .iter()
+            .position(|n| n == name)
+            .map(|k| k as u32)
+    }
+
+    /// Sum of the areas of the triangles tagged `k` (model units squared).
+    pub fn region_area(&self, k: u32) -> f64 {
+        (0..self.triangles.len())
+            .filter(|&t| self.region_of(t) == k)
+            .map(|t| self.signed_area(t))
+            .sum()
+    }
+
+    /// Number of edge-connected components of the triangles tagged `k` (0 when none is).
+    pub fn region_components(&self, k: u32) -> usize {
+        let picked: Vec<usize> = (0..self.triangles.len())
+            .filter(|&t| self.region_of(t) == k)
+            .collect();
+        let sub = Mesh2 {
+            vertices: Vec::new(),
+            triangles: picked.iter().map(|&t| self.triangles[t]).collect(),
+            ..Mesh2::default()
+        };
+        sub.edge_components()
     }
 
     /// Number of edge-connected components of the triangles (triangles that only share a vertex

@@ -22,6 +22,7 @@ fn two_cells() -> Mesh2 {
             [2.0, 1.0],
         ],
         triangles: vec![[0, 1, 4], [0, 4, 3], [1, 2, 5], [1, 5, 4]],
+        ..Mesh2::default()
     }
 }
 
@@ -52,6 +53,7 @@ fn snapshot_gmsh_and_vtk() {
     let mesh = Mesh2 {
         vertices: vec![[0.0, 0.0], [1.5, 0.0], [0.0, 0.25]],
         triangles: vec![[0, 1, 2]],
+        ..Mesh2::default()
     };
     let gmsh = "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n3\n1 0.0 0.0 0\n2 1.5 0.0 0\n\
                 3 0.0 0.25 0\n$EndNodes\n$Elements\n1\n1 2 2 1 1 1 2 3\n$EndElements\n";
@@ -148,4 +150,93 @@ proptest! {
         bytes.truncate(cut.min(bytes.len()));
         let _ = parse_mesh_json(&bytes, Path::new("mutated.json"));
     }
+}
+
+/// [`two_cells`] with its left cell in region 0 ("soft-tissue") and its right cell in region 1
+/// ("bone").
+fn two_regions() -> Mesh2 {
+    Mesh2 {
+        regions: vec![0, 0, 1, 1],
+        region_names: vec!["soft-tissue".into(), "bone".into()],
+        ..two_cells()
+    }
+}
+
+#[test]
+fn region_tags_round_trip_through_json_and_untagged_json_is_unchanged() {
+    let mesh = two_regions();
+    let text = mesh_to_json(&mesh);
+    assert!(text.contains("\"regions\": [0,0,1,1]"), "{text}");
+    assert!(
+        text.contains("\"region_names\": [\"soft-tissue\",\"bone\"]"),
+        "{text}"
+    );
+    let back = parse_mesh_json(text.as_bytes(), Path::new("regions.json")).unwrap();
+    assert_eq!(back, mesh);
+    assert_eq!(back.region_of(2), 1);
+    assert_eq!(back.region_index("bone"), Some(1));
+    assert_eq!(back.region_count(), 2);
+    // Each cell is 1 m^2.
+    assert!((back.region_area(0) - 1.0).abs() < 1e-15);
+    assert!((back.region_area(1) - 1.0).abs() < 1e-15);
+    assert_eq!(back.region_components(1), 1);
+    // No tags: no extra keys, and every triangle is region 0.
+    let plain = mesh_to_json(&two_cells());
+    assert!(!plain.contains("regions"), "{plain}");
+    let plain = parse_mesh_json(plain.as_bytes(), Path::new("plain.json")).unwrap();
+    assert_eq!(plain.region_of(3), 0);
+    assert!((plain.region_area(0) - 2.0).abs() < 1e-15);
+}
+
+#[test]
+fn region_tags_reach_gmsh_physical_tags_and_vtk_cell_data() {
+    let mesh = two_regions();
+    let gmsh = mesh_to_gmsh(&mesh);
+    assert!(
+        gmsh.contains("$PhysicalNames\n2\n2 1 \"soft-tissue\"\n2 2 \"bone\"\n$EndPhysicalNames\n"),
+        "{gmsh}"
+    );
+    // Element lines: number, type 2, two tags (physical, elementary), nodes.
+    assert!(gmsh.contains("\n2 2 2 1 1 1 5 4\n"), "{gmsh}");
+    assert!(gmsh.contains("\n3 2 2 2 2 2 3 6\n"), "{gmsh}");
+    let vtk = mesh_to_vtk(&mesh);
+    assert!(
+        vtk.ends_with("CELL_DATA 4\nSCALARS region int 1\nLOOKUP_TABLE default\n0\n0\n1\n1\n"),
+        "{vtk}"
+    );
+    // Untagged exports carry neither.
+    assert!(!mesh_to_gmsh(&two_cells()).contains("PhysicalNames"));
+    assert!(!mesh_to_vtk(&two_cells()).contains("CELL_DATA"));
+}
+
+#[test]
+fn bad_region_tags_are_one_line_errors_naming_the_key_and_value() {
+    let base = mesh_to_json(&two_cells());
+    let with = |extra: &str| base.replacen("\n  ]\n}", &format!("\n  ],\n  {extra}\n}}"), 1);
+    let cases = [
+        (
+            with("\"regions\": [0, 1]"),
+            "regions: 2 region tags for 4 triangles",
+        ),
+        (
+            with("\"regions\": [0, 0, 0, 3], \"region_names\": [\"a\", \"b\"]"),
+            "regions[3]: tag 3 has no name (2 region_names)",
+        ),
+        // serde names the line and the value of a negative tag.
+        (
+            with("\"regions\": [0, 0, -1, 0]"),
+            "integer `-1`, expected u32",
+        ),
+    ];
+    for (text, expected) in cases {
+        let err = parse_mesh_json(text.as_bytes(), Path::new("m.json"))
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains(expected), "{err} should contain {expected}");
+        assert_eq!(err.lines().count(), 1, "{err}");
+    }
+    // Tags without names are fine (any non-negative tag).
+    let text = with("\"regions\": [0, 4, 4, 0]");
+    let mesh = parse_mesh_json(text.as_bytes(), Path::new("m.json")).unwrap();
+    assert_eq!(mesh.region_count(), 5);
 }

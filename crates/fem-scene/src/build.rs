@@ -112,6 +112,7 @@ pub fn build_mesh(scene: &LoadedScene, source: &dyn MeshSource) -> Result<Mesh, 
                     .iter()
                     .map(|t| t.map(|i| i as usize))
                     .collect(),
+                ..Default::default()
             }
         }
         MeshKind::File => {
