@@ -124,6 +124,18 @@ pub fn build_mesh(scene: &LoadedScene, source: &dyn MeshSource) -> Result<Mesh, 
             Some(out) => out.mesh,
             None => unreachable!("a model or body mesh goes through the pipeline"),
         },
+        MeshKind::Shank => {
+            let (outline, bones) = fem_mesh::shank::shank_section();
+            let defaults = fem_mesh::shank::shank_params();
+            let params = TriangulateParams {
+                max_area: spec.max_area.or(defaults.max_area),
+                min_angle_deg: spec.min_angle.unwrap_or(defaults.min_angle_deg),
+                ..defaults
+            };
+            fem_mesh::triangulate::triangulate_regions(&[outline], &bones, &params)
+                .map_err(mesh_err)?
+                .0
+        }
     };
     place(&mut mesh2, spec.rotate_deg.unwrap_or(0.0), spec.align_min);
     let vertices = mesh2
@@ -136,8 +148,19 @@ pub fn build_mesh(scene: &LoadedScene, source: &dyn MeshSource) -> Result<Mesh, 
         .iter()
         .map(|t| t.map(|i| i as u32))
         .collect();
-    Mesh::new(vertices, triangles)
-        .map_err(|e| SceneError::Mesh(format!("{}: {from}: {e}", scene.origin)))
+    let mut mesh = Mesh::new(vertices, triangles)
+        .map_err(|e| SceneError::Mesh(format!("{}: {from}: {e}", scene.origin)))?;
+    if !mesh2.regions.is_empty() {
+        let names = if mesh2.region_names.is_empty() {
+            let n = mesh2.regions.iter().max().map_or(0, |m| *m + 1);
+            (0..n).map(|k| format!("region-{k}")).collect()
+        } else {
+            mesh2.region_names
+        };
+        mesh.set_regions(mesh2.regions, names)
+            .map_err(|e| SceneError::Mesh(format!("{}: {from}: {e}", scene.origin)))?;
+    }
+    Ok(mesh)
 }
 
 /// The mesh pipeline's output (every stage, for Figure 1) for a scene whose mesh comes from a
@@ -160,7 +183,7 @@ pub fn mesh_pipeline(
             fem_mesh::load::parse_model(&bytes, Path::new(&name), &options).map_err(mesh_err)?
         }
         MeshKind::Body => fem_mesh::body::human_body(),
-        MeshKind::Rectangle | MeshKind::File => return Ok(None),
+        MeshKind::Rectangle | MeshKind::File | MeshKind::Shank => return Ok(None),
     };
     surface.scale(spec.scale.unwrap_or(1.0));
     let (lo, hi) = surface.bounds().ok_or_else(|| {
@@ -180,7 +203,19 @@ pub fn mesh_pipeline(
         },
         ..PipelineParams::default()
     };
-    mesh_surface(surface, &params).map(Some).map_err(mesh_err)
+    let out = if kind == MeshKind::Body && spec.skeleton.unwrap_or(true) {
+        let mut skeleton = fem_mesh::body::human_skeleton();
+        let factor = spec.scale.unwrap_or(1.0);
+        if factor != 1.0 {
+            for bone in &mut skeleton.bones {
+                bone.parts.iter_mut().for_each(|p| p.scale(factor));
+            }
+        }
+        fem_mesh::pipeline::mesh_surface_with_skeleton(surface, &skeleton, &params)
+    } else {
+        mesh_surface(surface, &params)
+    };
+    out.map(Some).map_err(mesh_err)
 }
 
 /// Rotate by `deg` degrees counter-clockwise about the origin, then translate the bounding

@@ -118,8 +118,12 @@ pub enum MeshKind {
     File,
     /// A 3D model file (OBJ, STL, PLY) through the mesh pipeline (`path` and pipeline fields).
     Model,
-    /// The built-in procedural human body through the mesh pipeline (pipeline fields).
+    /// The built-in procedural human body through the mesh pipeline (pipeline fields), with
+    /// its skeleton as inner regions unless `skeleton = false`.
     Body,
+    /// The built-in lower-leg close-up: a longitudinal section of the shank with its tibia
+    /// (`max_area`, `min_angle`).
+    Shank,
 }
 
 /// Camera preset of the mesh pipeline (model +Y up, +Z forward).
@@ -193,6 +197,11 @@ pub struct MeshSpec {
     /// Model and body: factor on the model's coordinates (0.1 turns decimetres into metres).
     /// Default 1.
     pub scale: Option<f64>,
+    /// Body: mesh the skeleton's bones as inner regions (mesh regions `skull`, `spine`,
+    /// `pelvis`, `femur`, `tibia`, `fibula`, `humerus`; the rest is `soft-tissue`). Default
+    /// true.
+    #[serde(default)]
+    pub skeleton: Option<bool>,
     /// Model and body: camera preset. Default `side`.
     pub view: Option<ViewName>,
     /// Model and body: alpha-shape radius, m. Default: the pipeline's suggestion.
@@ -1021,7 +1030,7 @@ impl LoadedScene {
             self.error(
                 "mesh.kind",
                 "(missing)",
-                "must be one of \"rectangle\", \"file\", \"model\", \"body\"",
+                "must be one of \"rectangle\", \"file\", \"model\", \"body\", \"shank\"",
             )
         })?;
         let kind_name = match kind {
@@ -1029,6 +1038,7 @@ impl LoadedScene {
             MeshKind::File => "file",
             MeshKind::Model => "model",
             MeshKind::Body => "body",
+            MeshKind::Shank => "shank",
         };
         let rect = [
             ("width", m.width.is_some()),
@@ -1046,7 +1056,11 @@ impl LoadedScene {
             ("max_area", m.max_area.is_some()),
             ("min_angle", m.min_angle.is_some()),
         ];
-        let path = [("path", m.path.is_some()), ("groups", m.groups.is_some())];
+        let path = [
+            ("path", m.path.is_some()),
+            ("groups", m.groups.is_some()),
+            ("skeleton", m.skeleton.is_some()),
+        ];
         let allowed: Vec<&str> = match kind {
             MeshKind::Rectangle => rect.iter().map(|r| r.0).collect(),
             MeshKind::File => vec!["path"],
@@ -1055,7 +1069,8 @@ impl LoadedScene {
                 .map(|r| r.0)
                 .chain(["path", "groups"])
                 .collect(),
-            MeshKind::Body => pipeline.iter().map(|r| r.0).collect(),
+            MeshKind::Body => pipeline.iter().map(|r| r.0).chain(["skeleton"]).collect(),
+            MeshKind::Shank => vec!["max_area", "min_angle"],
         };
         for (name, present) in rect.iter().chain(&pipeline).chain(&path) {
             if *present && !allowed.contains(name) {
@@ -1114,7 +1129,7 @@ impl LoadedScene {
                 }
             }
             MeshKind::File | MeshKind::Model => need("path", m.path.is_some())?,
-            MeshKind::Body => {}
+            MeshKind::Body | MeshKind::Shank => {}
         }
         positive("scale", m.scale)?;
         positive("alpha", m.alpha)?;
