@@ -116,8 +116,11 @@ impl ContactPressure {
         self.loaded.clear();
         self.contact_length = 0.0;
         self.peak = None;
-        for v in 0..n {
-            let (f, l) = (self.force[v], self.length[v]);
+        for (v, (&xv, (&f, &l))) in x
+            .iter()
+            .zip(self.force.iter().zip(&self.length))
+            .enumerate()
+        {
             if f > 0.0 && l > 0.0 {
                 let p = f / l;
                 self.pressure[v] = p;
@@ -127,7 +130,7 @@ impl ContactPressure {
                     self.peak = Some(PeakPressure {
                         vertex: v as u32,
                         pressure: p,
-                        position: x[v],
+                        position: xv,
                     });
                 }
             }
