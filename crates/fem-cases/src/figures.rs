@@ -380,9 +380,13 @@ pub fn write_figures(runs_: &CaseRuns, dir: &Path) -> Result<Vec<Figure>, SceneE
         drun,
         peak,
         FieldKind::VonMises,
-        &format!("(b) von Mises stress at peak, t = {:.2} s", peak.time),
+        &format!(
+            "(b) von Mises stress and contact pressure at peak, t = {:.2} s",
+            peak.time
+        ),
     )
-    .with_ground(ground);
+    .with_ground(ground)
+    .with_contact_pressure();
     let top = render_side_by_side(
         &[&scene_pic],
         FieldKind::VonMises,

@@ -1,6 +1,9 @@
 //! Pictures of runs: a recorded frame as a PNG stress map, a run as an animated GIF, several
 //! runs side by side with one colorbar, probe curves as charts. The drawing itself is
-//! `fem-render`'s; this module turns a [`RunResult`] into what it draws.
+//! `fem-render`'s; this module turns a [`RunResult`] into what it draws. A picture of a run
+//! with contact may carry the contact pressure along the boundary
+//! ([`FramePicture::with_contact_pressure`]): a coloured thick line with a legend in kPa, over
+//! the field (`fem_render::pressure`).
 
 use std::borrow::Cow;
 use std::path::Path;
@@ -10,6 +13,7 @@ use fem_render::Image;
 use fem_render::chart::{LineChart, Scale, Series};
 use fem_render::colormap::Colormap;
 use fem_render::frame::{FieldValues, FrameStyle, MeshView, Rendered, render};
+use fem_render::pressure::{PressureOverlay, draw_pressure};
 
 use crate::run::{RunResult, Snapshot};
 use fem_scene::SceneError;
@@ -70,6 +74,12 @@ pub struct FramePicture<'a> {
     values: Cow<'a, [f64]>,
     per_vertex: bool,
     obstacles: Cow<'a, [Vec<[f64; 2]>]>,
+    /// The frame's contact pressure per vertex, Pa (empty when the run kept none).
+    snapshot_pressure: &'a [f64],
+    /// Whether [`FramePicture::with_contact_pressure`] asked for the pressure line.
+    show_pressure: bool,
+    /// Whether the run had any contact pressure.
+    run_has_pressure: bool,
     /// Caption drawn above the panel.
     pub caption: String,
     /// Time of the frame, s.
@@ -110,6 +120,9 @@ impl<'a> FramePicture<'a> {
             values,
             per_vertex,
             obstacles: Cow::Borrowed(&snapshot.obstacles),
+            snapshot_pressure: &snapshot.contact_pressure,
+            show_pressure: false,
+            run_has_pressure: run.summary.contact_peak_pressure > 0.0,
             caption: caption.to_owned(),
             time: snapshot.time,
         }
@@ -118,7 +131,23 @@ impl<'a> FramePicture<'a> {
     /// The picture with no field (the mesh in a flat colour), e.g. to show a scene's set-up.
     pub fn plain(mut self) -> Self {
         self.values = Cow::Borrowed(&[]);
+        self.show_pressure = false;
         self
+    }
+
+    /// The picture with the frame's contact pressure drawn along the boundary when the run
+    /// had contact (nothing changes for a run without): see [`overlay_pressure`].
+    pub fn with_contact_pressure(mut self) -> Self {
+        self.show_pressure = true;
+        self
+    }
+
+    /// The contact pressure to draw, per vertex (Pa), if this picture shows it.
+    pub fn contact_pressure(&self) -> Option<&[f64]> {
+        (self.show_pressure
+            && self.run_has_pressure
+            && self.snapshot_pressure.len() == self.positions.len())
+        .then_some(self.snapshot_pressure)
     }
 
     /// Adds a horizontal ground at height `y` (m), drawn as a thin strip under the body (the
@@ -176,6 +205,40 @@ impl<'a> FramePicture<'a> {
     pub fn range(&self) -> Option<(f64, f64)> {
         finite_range(self.values.iter().copied())
     }
+}
+
+/// The legend range of the contact pressure over `pictures`, kPa: 0 to the largest pressure
+/// any of them shows; `None` when none shows one or nothing is loaded.
+pub fn pressure_range(pictures: &[&FramePicture<'_>]) -> Option<(f64, f64)> {
+    let hi = pictures
+        .iter()
+        .filter_map(|p| p.contact_pressure())
+        .flatten()
+        .filter(|p| p.is_finite())
+        .fold(0.0, |m: f64, &p| m.max(p * 1e-3));
+    (hi > 0.0).then_some((0.0, hi))
+}
+
+/// Draws the contact pressure of each picture that shows one over its panel of `rendered`
+/// (the panels in the order of `pictures`), in kPa on one legend range (`range`, or
+/// [`pressure_range`] over them, so colours compare across panels and frames).
+pub fn overlay_pressure(
+    rendered: &mut Rendered,
+    pictures: &[&FramePicture<'_>],
+    range: Option<(f64, f64)>,
+) -> Result<(), SceneError> {
+    let Some(range) = range.or_else(|| pressure_range(pictures)) else {
+        return Ok(());
+    };
+    for (p, panel) in pictures.iter().zip(&rendered.panels) {
+        if let Some(pressure) = p.contact_pressure() {
+            let mut o = PressureOverlay::new(p.positions, &p.triangles, pressure);
+            o.range = Some(range);
+            draw_pressure(&mut rendered.image, panel, &o)
+                .map_err(|e| SceneError::Io(format!("contact pressure: {e}")))?;
+        }
+    }
+    Ok(())
 }
 
 fn finite_range(values: impl Iterator<Item = f64>) -> Option<(f64, f64)> {
@@ -247,7 +310,10 @@ pub fn render_side_by_side(
     st.range = range.or_else(|| shared_range(pictures, field));
     st.bounds = pictures.iter().map(|p| p.bounds()).reduce(union);
     let views: Vec<MeshView<'_>> = pictures.iter().map(|p| p.view()).collect();
-    render(&views, &st).map_err(|e| SceneError::Io(format!("rendering \"{title}\": {e}")))
+    let mut rendered =
+        render(&views, &st).map_err(|e| SceneError::Io(format!("rendering \"{title}\": {e}")))?;
+    overlay_pressure(&mut rendered, pictures, None)?;
+    Ok(rendered)
 }
 
 /// Options of a run's animation.
@@ -267,6 +333,9 @@ pub struct GifOptions {
     pub every: usize,
     /// Draw the triangles' edges over the colours.
     pub wireframe: bool,
+    /// Draw the contact pressure along the boundary when the run had contact (one legend
+    /// range for the whole animation); default true.
+    pub contact_pressure: bool,
 }
 
 impl Default for GifOptions {
@@ -279,6 +348,7 @@ impl Default for GifOptions {
             ground: None,
             every: 1,
             wireframe: false,
+            contact_pressure: true,
         }
     }
 }
@@ -298,7 +368,14 @@ pub fn write_gif(run: &RunResult, path: &Path, options: &GifOptions) -> Result<u
         .iter()
         .enumerate()
         .filter(|(k, _)| k % options.every.max(1) == 0 || *k == last)
-        .map(|(_, s)| FramePicture::new(run, s, options.field, "").with_ground(options.ground))
+        .map(|(_, s)| {
+            let p = FramePicture::new(run, s, options.field, "").with_ground(options.ground);
+            if options.contact_pressure {
+                p.with_contact_pressure()
+            } else {
+                p
+            }
+        })
         .collect();
     let refs: Vec<&FramePicture<'_>> = pictures.iter().collect();
     let mut st = style(
@@ -310,11 +387,16 @@ pub fn write_gif(run: &RunResult, path: &Path, options: &GifOptions) -> Result<u
     st.range = shared_range(&refs, options.field);
     st.bounds = pictures.iter().map(|p| p.bounds()).reduce(union);
     st.wireframe = options.wireframe;
+    let pressure = pressure_range(&refs);
     let io = |e: fem_render::RenderError| SceneError::Io(format!("{}: {e}", path.display()));
     let mut writer = None;
     for p in &pictures {
         st.time_label = Some(time_label(run, p.time));
-        let frame = render(&[p.view()], &st).map_err(io)?.image;
+        let mut rendered = render(&[p.view()], &st).map_err(io)?;
+        if pressure.is_some() {
+            overlay_pressure(&mut rendered, &[p], pressure)?;
+        }
+        let frame = rendered.image;
         let w = match &mut writer {
             Some(w) => w,
             None => writer.insert(

@@ -9,13 +9,16 @@
 //! - `regions.csv`: one row per frame, `step,time` then per material region its peak and mean
 //!   von Mises stress, largest compressive strain and area fraction above the stress threshold;
 //! - `frames.jsonl` (unless `output.frames = false`): one JSON object per frame with the
-//!   positions (`[x0, y0, x1, y1, ...]`), the obstacle polygons and the per-element von Mises
-//!   stress, for renderers;
+//!   positions (`[x0, y0, x1, y1, ...]`), the obstacle polygons, the per-element von Mises
+//!   stress, the contacts and the contact pressure of the loaded boundary vertices
+//!   (`[[vertex, pressure_Pa], ...]`), for renderers;
 //! - `mesh.json`: the rest mesh (mesh JSON contract);
 //! - `stress.json`: the last frame's von Mises stress per element and per vertex;
 //! - `scene.toml`: the scene as run, overrides applied (a relative mesh path written absolute,
 //!   so the copy runs from the output directory);
-//! - with [`RunOptions::vtk`], `vtk/run.pvd` and one `vtk/run_NNNNNN.vtu` per frame.
+//! - with [`RunOptions::vtk`], `vtk/run.pvd` and one `vtk/run_NNNNNN.vtu` per frame (point
+//!   data `displacement`, `velocity`, `contact_pressure` in Pa; cell data `von_mises`,
+//!   `det_F`).
 //!
 //! The summary is written last: its presence says the other files are complete.
 
@@ -294,6 +297,12 @@ impl FrameSink for FramesJsonl {
                 json_number(c.force)
             );
         }
+        w.push_str("],\"pressure\":[");
+        let p = f.pressure.vertex_pressure();
+        for (k, &v) in f.pressure.loaded_vertices().iter().enumerate() {
+            let sep = if k == 0 { "" } else { "," };
+            let _ = write!(w, "{sep}[{v},{}]", json_number(p[v as usize]));
+        }
         w.push_str("]}\n");
         self.file
             .write_all(w.as_bytes())
@@ -310,6 +319,7 @@ struct VtkSink {
     positions: Vec<[f64; 2]>,
     det_f: Vec<f64>,
     von_mises: Vec<f64>,
+    pressure: Vec<f64>,
 }
 
 impl VtkSink {
@@ -330,6 +340,7 @@ impl VtkSink {
             positions: Vec::new(),
             det_f: Vec::new(),
             von_mises: Vec::new(),
+            pressure: Vec::new(),
         })
     }
 
@@ -380,12 +391,22 @@ impl FrameSink for VtkSink {
                 .iter()
                 .map(|&v| if v.is_finite() { v } else { -1.0 }),
         );
+        // Pa, 0 off contact; a non-finite pressure (a touching barrier pair) as -1, which a
+        // pressure never is.
+        self.pressure.clear();
+        self.pressure.extend(
+            f.pressure
+                .vertex_pressure()
+                .iter()
+                .map(|&p| if p.is_finite() { p } else { -1.0 }),
+        );
         let frame = VtkFrame {
             positions: &self.positions,
             triangles: &self.triangles,
             point_data: vec![
                 ("displacement", DataArray::Vectors(&self.displacement)),
                 ("velocity", DataArray::Vectors(&self.velocity)),
+                ("contact_pressure", DataArray::Scalars(&self.pressure)),
             ],
             cell_data: vec![
                 ("von_mises", DataArray::Scalars(&self.von_mises)),

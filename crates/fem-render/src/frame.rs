@@ -707,6 +707,13 @@ struct Scratch {
     loops: Vec<(usize, usize, bool)>,
 }
 
+/// The boundary edges of a triangle mesh (used by exactly one triangle, oriented as in it).
+pub(crate) fn boundary_edges(n_vertices: usize, triangles: &[[usize; 3]]) -> Vec<[u32; 2]> {
+    let mut s = Scratch::default();
+    s.boundary_loops(n_vertices, triangles);
+    s.boundary
+}
+
 impl Scratch {
     /// Boundary edges (used by exactly one triangle, oriented as in that triangle), chained
     /// into loops.

@@ -8,6 +8,8 @@
 //! - [`gif`]: animated GIFs from a sequence of frames.
 //! - [`chart`]: line charts (probe curves) and grid charts (stability maps) as SVG, and as PNG
 //!   through the same SVG.
+//! - [`pressure`]: a contact pressure along the body's boundary, a coloured thick line with a
+//!   legend, drawn over a frame.
 //! - [`vtk`]: `.vtu` files per frame and a `.pvd` collection for ParaView, and a small reader.
 //!
 //! The crate depends on no other workspace crate: a mesh is a slice of positions and a slice of
@@ -21,6 +23,7 @@ pub use error::write_atomic;
 pub mod frame;
 pub mod gif;
 mod image;
+pub mod pressure;
 mod raster;
 mod text;
 pub mod vtk;

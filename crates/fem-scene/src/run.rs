@@ -27,7 +27,8 @@ use fem_core::math::{Real, Vec2};
 use fem_core::mesh::Mesh;
 use fem_core::stress::{ElementStress, VonMisesFormula, populate_element_stress, vertex_average};
 use fem_solvers::{
-    AnyStepper, Clock as SolverClock, Contact, Model, SolverError, SolverKind, State, Stepper,
+    AnyStepper, Clock as SolverClock, Contact, ContactPressure, Model, SolverError, SolverKind,
+    State, Stepper,
 };
 use serde::{Deserialize, Serialize};
 
@@ -89,6 +90,10 @@ pub struct Frame<'a> {
     /// contact): the features, the point, the normal, the gap (negative: penetration), m, and
     /// the normal force, N per unit thickness.
     pub contacts: &'a [Contact],
+    /// The normal contact pressure on the boundary from those contacts
+    /// ([`fem_solvers::pressure`]): per vertex, Pa (0 off contact), the loaded vertices, the
+    /// contact length and the peak.
+    pub pressure: &'a ContactPressure,
 }
 
 /// Receives every recorded frame of a run, in order (a file writer, a VTK writer, a canvas).
@@ -160,6 +165,8 @@ pub struct Snapshot {
     pub det_f: Vec<f64>,
     /// Obstacle polygons, m.
     pub obstacles: Vec<Vec<[f64; 2]>>,
+    /// Normal contact pressure per vertex, Pa (0 off contact; [`fem_solvers::pressure`]).
+    pub contact_pressure: Vec<f64>,
 }
 
 /// Probe statistics in the summary.
@@ -270,6 +277,29 @@ pub struct Summary {
     /// Contacts after the last step.
     #[serde(default)]
     pub final_contacts: usize,
+    /// Largest normal contact pressure at a boundary vertex over every step, Pa (0 without
+    /// contact); the pressure is the nodal contact force over the vertex's tributary boundary
+    /// length ([`fem_solvers::pressure`]).
+    #[serde(default)]
+    pub contact_peak_pressure: f64,
+    /// Where that peak acted: the vertex's position at that step, m (`null` without contact).
+    #[serde(default)]
+    pub contact_peak_pressure_at: Option<[f64; 2]>,
+    /// The step of that peak (load increment for a load-stepping run; 0 without contact).
+    #[serde(default)]
+    pub contact_peak_pressure_step: u64,
+    /// Contact length after the last step, m: the tributary boundary length of the loaded
+    /// vertices (0 without contact).
+    #[serde(default)]
+    pub final_contact_length: f64,
+    /// Largest vertex contact pressure after the last step, Pa (0 without contact).
+    #[serde(default)]
+    pub final_contact_pressure_peak: f64,
+    /// Time integral of the total normal contact force over every step (each step's force
+    /// times its time step), N s per metre of thickness; 0 for a load-stepping run, which has
+    /// no time.
+    #[serde(default)]
+    pub contact_impulse: f64,
     /// Residual (norm of the force imbalance on the free vertices) at the end of the last
     /// Newton solve that converged, N (the last step or load increment); `null` for solvers
     /// explicit in time or when no solve converged.
@@ -368,6 +398,7 @@ impl Recorder {
         model: &Model<E>,
         state: &State,
         contacts: &[Contact],
+        pressure: &ContactPressure,
         probes: &[Probe],
         sinks: &mut [&mut dyn FrameSink],
     ) -> Result<(), SceneError> {
@@ -437,6 +468,7 @@ impl Recorder {
             von_mises: &self.von_mises,
             obstacles: &self.obstacles,
             contacts,
+            pressure,
         };
         for sink in sinks.iter_mut() {
             sink.frame(&frame)?;
@@ -459,6 +491,9 @@ impl Recorder {
                     .iter()
                     .map(|poly| poly.iter().map(|p| [p.x, p.y]).collect()),
             );
+            snap.contact_pressure.clear();
+            snap.contact_pressure
+                .extend_from_slice(pressure.vertex_pressure());
             if keep {
                 self.snapshots.push(snap);
             } else {
@@ -498,10 +533,17 @@ struct ContactTally {
     peak_force: f64,
     final_force: [f64; 2],
     final_count: usize,
+    /// Peak vertex pressure over the run: value, position, step.
+    peak_pressure: (f64, Option<[f64; 2]>, u64),
+    final_length: f64,
+    final_peak_pressure: f64,
+    impulse: f64,
 }
 
 impl ContactTally {
-    fn add(&mut self, contacts: &[Contact]) {
+    /// Add a step that ended at `step` after `dt` seconds (0 for a load increment) with these
+    /// contacts and their pressure.
+    fn add(&mut self, contacts: &[Contact], pressure: &ContactPressure, step: u64, dt: f64) {
         let mut total = Vec2::zeros();
         for c in contacts {
             self.min_gap = Some(self.min_gap.map_or(c.gap, |g| g.min(c.gap)));
@@ -510,6 +552,15 @@ impl ContactTally {
         }
         self.final_force = [total.x, total.y];
         self.final_count = contacts.len();
+        let peak = pressure.peak();
+        if let Some(pk) = peak
+            && pk.pressure > self.peak_pressure.0
+        {
+            self.peak_pressure = (pk.pressure, Some([pk.position.x, pk.position.y]), step);
+        }
+        self.final_length = pressure.contact_length();
+        self.final_peak_pressure = peak.map_or(0.0, |pk| pk.pressure);
+        self.impulse += pressure.total_force() * dt;
     }
 }
 
@@ -635,6 +686,12 @@ fn run_with<E: Energy>(
         contact_peak_force: contact.peak_force,
         final_contact_force: contact.final_force,
         final_contacts: contact.final_count,
+        contact_peak_pressure: contact.peak_pressure.0,
+        contact_peak_pressure_at: contact.peak_pressure.1,
+        contact_peak_pressure_step: contact.peak_pressure.2,
+        final_contact_length: contact.final_length,
+        final_contact_pressure_peak: contact.final_peak_pressure,
+        contact_impulse: contact.impulse,
         newton_iterations,
         final_residual,
         version: env!("CARGO_PKG_VERSION").to_owned(),
@@ -680,7 +737,11 @@ fn step_loop<E: Energy>(
     let load_stepping = caps.clock == SolverClock::LoadFactor;
     let clock = env.clock;
     let start = clock.seconds();
-    rec.record(model, state, &[], probes, &mut env.sinks)?;
+    // Updated after every step: the summary's peak and impulse count every step, not only
+    // the recorded frames.
+    let mut pressure = ContactPressure::new();
+    pressure.update(model, &state.x, &[]);
+    rec.record(model, state, &[], &pressure, probes, &mut env.sinks)?;
     let planned = s.solver.planned_steps();
     if let Some(p) = env.progress.as_deref_mut() {
         p.start(planned);
@@ -726,7 +787,13 @@ fn step_loop<E: Energy>(
                     }
                     min_det_f = min_det_f.min(report.min_det_f);
                     inverted = inverted.max(report.inverted);
-                    contact.add(stepper.contacts());
+                    pressure.update(model, &state.x, stepper.contacts());
+                    let dt = if load_stepping {
+                        0.0
+                    } else {
+                        state.t - t_before
+                    };
+                    contact.add(stepper.contacts(), &pressure, state.step, dt);
                     if caps.implicit {
                         newton_iterations += report.iterations as u64;
                         final_residual = Some(report.residual);
@@ -748,7 +815,14 @@ fn step_loop<E: Energy>(
         }
         if done.is_multiple_of(every) || finished(done, state) || blow_up.is_some() {
             if rec.frame_times.last().map(|f| f.0) != Some(state.step) {
-                rec.record(model, state, stepper.contacts(), probes, &mut env.sinks)?;
+                rec.record(
+                    model,
+                    state,
+                    stepper.contacts(),
+                    &pressure,
+                    probes,
+                    &mut env.sinks,
+                )?;
             }
             if blow_up.is_none()
                 && let Some(m) = rec.runaway.take()

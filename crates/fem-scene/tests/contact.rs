@@ -123,3 +123,146 @@ fn case_d_under_implicit_euler_at_a_tenth_of_a_millisecond_does_not_cycle() {
     assert!(per_step < 15.0, "{per_step} Newton iterations per step");
     assert!(r.summary.contact_min_gap.unwrap() > 0.0);
 }
+
+/// Keeps the last frame's contact pressure: per-vertex pressure and tributary length, the
+/// positions, the debris' polygon, and per vertex the direction of the contact forces it
+/// carries (their consistent nodal shares as vectors, summed).
+#[derive(Default)]
+struct LastPressure {
+    pressure: Vec<Real>,
+    length: Vec<Real>,
+    positions: Vec<Vec2>,
+    debris: Vec<Vec2>,
+    direction: Vec<Vec2>,
+}
+
+impl fem_scene::run::FrameSink for LastPressure {
+    fn frame(&mut self, f: &fem_scene::run::Frame<'_>) -> Result<(), fem_scene::SceneError> {
+        self.pressure = f.pressure.vertex_pressure().to_vec();
+        self.length = f.pressure.tributary_length().to_vec();
+        self.positions = f.positions.to_vec();
+        self.debris = f.obstacles[0].clone();
+        self.direction = vec![Vec2::zeros(); f.positions.len()];
+        for c in f.contacts {
+            let force = c.normal * c.force;
+            match c.kind {
+                ContactKind::VertexGround { vertex }
+                | ContactKind::VertexObstacle { vertex, .. } => {
+                    self.direction[vertex as usize] += force;
+                }
+                ContactKind::CornerEdge { edge: [a, b], .. } => {
+                    let (xa, xb) = (f.positions[a as usize], f.positions[b as usize]);
+                    let e = xb - xa;
+                    let t = ((c.point - xa).dot(&e) / e.norm_squared()).clamp(0.0, 1.0);
+                    self.direction[a as usize] += force * (1.0 - t);
+                    self.direction[b as usize] += force * t;
+                }
+                _ => {}
+            }
+        }
+        Ok(())
+    }
+}
+
+#[test]
+fn case_d_contact_pressure_under_the_debris_carries_its_weight_and_peaks_there() {
+    // Implicit Euler at 90 Hz for 1.5 s (the debris settles on the shin, damping 20/s). The
+    // boundary vertices under the debris: within its x-range widened by the longest boundary
+    // edge (a corner of the debris on an edge loads both of the edge's ends), above half the
+    // height of its bottom (not the leg's ground contact below). Nothing depends on the body
+    // mesh. The debris weighs 95 kg x 9.8 = 931 N per metre:
+    // - the contact forces on those vertices, as vectors, carry it: vertical resultant within
+    //   1 % (so the vertices are the right ones);
+    // - the pressure integrated over them (the sum of their normal force magnitudes) is at
+    //   least the weight and exceeds it only by the contacts' tilt and the barrier's several
+    //   pairs at the corner the debris rests on (normals that partly cancel): measured 2.0 %
+    //   above, tolerance 3 %;
+    // - the largest vertex pressure off the ground contact lies there (the largest of all is
+    //   on the ground: measured 26.3 kPa under the buttocks against 15.9 kPa under the
+    //   debris' corner, the whole body's weight resting on a short stretch).
+    let scene = case_d(&[
+        "solver.kind=implicit",
+        "solver.dt=0.011111111111111112",
+        "solver.steps=135",
+    ]);
+    let mut last = LastPressure::default();
+    let mut env = RunEnv::default();
+    env.sinks.push(&mut last);
+    let r = run(&scene, &mut env).unwrap();
+    assert!(!r.summary.blew_up, "{:?}", r.summary.blow_up_message);
+    let edge = 2.0 * last.length.iter().copied().fold(0.0, Real::max);
+    let (lo, hi) = last
+        .debris
+        .iter()
+        .fold((Real::INFINITY, Real::NEG_INFINITY), |(lo, hi), p| {
+            (lo.min(p.x), hi.max(p.x))
+        });
+    let bottom = last
+        .debris
+        .iter()
+        .map(|p| p.y)
+        .fold(Real::INFINITY, Real::min);
+    let under = |p: Vec2| p.x >= lo - edge && p.x <= hi + edge && p.y > 0.5 * bottom;
+    let vertices: Vec<usize> = (0..last.positions.len())
+        .filter(|&v| last.pressure[v] > 0.0 && under(last.positions[v]))
+        .collect();
+    let integral: Real = vertices
+        .iter()
+        .map(|&v| last.pressure[v] * last.length[v])
+        .sum();
+    // The normals point into the body: down, under the debris.
+    let vertical: Real = -vertices.iter().map(|&v| last.direction[v].y).sum::<Real>();
+    let weight = 95.0 * 9.8;
+    assert!(
+        (vertical - weight).abs() < 0.01 * weight,
+        "vertical contact force under the debris {vertical} N/m, weight {weight} N/m"
+    );
+    assert!(
+        integral >= 0.999 * weight && integral < 1.03 * weight,
+        "pressure under the debris integrates to {integral} N/m, weight {weight} N/m"
+    );
+    let s = &r.summary;
+    let (v, _) = last
+        .pressure
+        .iter()
+        .enumerate()
+        .filter(|(v, _)| last.positions[*v].y > 0.5 * bottom)
+        .max_by(|a, b| a.1.total_cmp(b.1))
+        .unwrap();
+    let peak = last.pressure[v];
+    assert!(
+        under(last.positions[v]),
+        "peak off the ground {peak} Pa at {:?}, debris x in [{lo}, {hi}], bottom {bottom}",
+        last.positions[v]
+    );
+    assert!(s.final_contact_pressure_peak >= peak);
+    // The summary: the run's peak is at least the final one, the contact length positive.
+    // The impulse sums every contact's force on the body over 1.5 s: the ground's (body and
+    // debris, 1617 N/m at rest) and the debris' on the leg (931 N/m once landed), so it lies
+    // between the body's weight alone over the run (1029 N s/m, less 10 % for its first
+    // half-millimetre fall) and both at rest over the whole run (3822 N s/m, plus 5 % for the
+    // landing).
+    assert!(
+        s.contact_peak_pressure >= s.final_contact_pressure_peak
+            && s.contact_peak_pressure_at.is_some()
+    );
+    assert!(s.final_contact_length > 0.0);
+    assert!(
+        s.contact_impulse > 0.9 * 70.0 * 9.8 * 1.5
+            && s.contact_impulse < 1.05 * (70.0 + 2.0 * 95.0) * 9.8 * 1.5,
+        "impulse {} N s/m",
+        s.contact_impulse
+    );
+    eprintln!(
+        "case D: under the debris {} vertices, pressure integral {integral:.3} N/m, vertical {vertical:.3} N/m; its peak {:.3} kPa at {:?}; final peak {:.3} kPa, run peak {:.3} kPa at {:?} (step {}), contact length {:.4} m, impulse {:.3} N s/m",
+        vertices.len(),
+        peak * 1e-3,
+        last.positions[v],
+        s.final_contact_pressure_peak * 1e-3,
+        s.contact_peak_pressure * 1e-3,
+        s.contact_peak_pressure_at,
+        s.contact_peak_pressure_step,
+        s.final_contact_length,
+        s.contact_impulse
+    );
+}

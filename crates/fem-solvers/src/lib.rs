@@ -119,6 +119,7 @@ pub mod model;
 pub mod newton;
 mod pd_system;
 pub mod position_based;
+pub mod pressure;
 pub mod projective;
 pub mod quasi_newton;
 pub mod registry;
@@ -144,6 +145,7 @@ pub use newton::{NewtonParams, NewtonReport};
 pub use position_based::{
     LambdaReset, Ordering, PbdParams, PbdStepper, XpbdForm, XpbdParams, XpbdSchedule, XpbdStepper,
 };
+pub use pressure::{ContactPressure, PeakPressure};
 pub use projective::{PdParams, PdStepper};
 pub use quasi_newton::{QuasiNewtonParams, QuasiNewtonReport, QuasiNewtonStepper};
 pub use registry::{

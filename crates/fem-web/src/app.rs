@@ -31,7 +31,7 @@ use fem_scene::build::{
 use fem_scene::cases::{case_text, load_case};
 use fem_scene::drag::{DragAction, DragEvent, DragPlayer, DragTrajectory, Hand, Held};
 use fem_scene::scene::{LoadedScene, Scene, parse_scene};
-use fem_solvers::{AnyStepper, BodyState, Clock, Model, State, Stepper};
+use fem_solvers::{AnyStepper, BodyState, Clock, ContactPressure, Model, State, Stepper};
 
 /// The most simulated time one frame may owe, s: a frame after a long pause (a hidden tab,
 /// a breakpoint) does not ask for more.
@@ -101,6 +101,11 @@ pub struct Hud {
     pub min_gap: Real,
     /// Their total force on the body, N per unit thickness.
     pub contact_force: [Real; 2],
+    /// The largest normal contact pressure at a boundary vertex, Pa (0 without contact;
+    /// `fem_solvers::pressure`).
+    pub contact_pressure_peak: Real,
+    /// The contact length, m: the tributary boundary length of the loaded vertices.
+    pub contact_length: Real,
     /// The run stopped on this one-line message (a blow-up); reset recovers.
     pub error: Option<String>,
 }
@@ -141,6 +146,7 @@ pub struct App {
     formula: VonMisesFormula,
     stress: Vec<ElementStress>,
     rest_area: Vec<Real>,
+    pressure: ContactPressure,
     hud: Hud,
     /// Steps the current frame wants.
     wanted: u64,
@@ -192,6 +198,7 @@ impl App {
             stepper,
             state,
             stress: Vec::new(),
+            pressure: ContactPressure::new(),
             hud: Hud::default(),
             wanted: 0,
             recording: None,
@@ -426,6 +433,10 @@ impl App {
             .fold(Real::INFINITY, Real::min);
         let force: Vec2 = contacts.iter().map(|c| c.normal * c.force).sum();
         hud.contact_force = [force.x, force.y];
+        self.pressure
+            .update(&self.model, &self.state.x, self.stepper.contacts());
+        hud.contact_pressure_peak = self.pressure.peak().map_or(0.0, |p| p.pressure);
+        hud.contact_length = self.pressure.contact_length();
         hud.t = self.state.t;
         hud.step = self.state.step;
         hud.peak_von_mises = self
@@ -471,6 +482,16 @@ impl App {
     /// The triangles (counter-clockwise vertex indices).
     pub fn triangles(&self) -> &[[u32; 3]] {
         self.mesh.triangles()
+    }
+
+    /// The normal contact pressure per vertex after the last step, Pa (0 off contact).
+    pub fn contact_pressure(&self) -> &[Real] {
+        self.pressure.vertex_pressure()
+    }
+
+    /// The body's boundary edges (counter-clockwise, the body on the left of `a -> b`).
+    pub fn boundary_edges(&self) -> &[[u32; 2]] {
+        self.model.boundary_edges()
     }
 
     /// The field's values: one per triangle, or one per vertex for the displacement.

@@ -267,6 +267,33 @@ pub extern "C" fn triangles() -> *const u32 {
     )
 }
 
+/// The body's boundary edges as vertex indices (u32, two per edge; the body on the left of
+/// each `a -> b`).
+#[unsafe(no_mangle)]
+pub extern "C" fn boundary_edges() -> *const u32 {
+    with_app(
+        |app| {
+            U32.with(|b| {
+                let mut b = b.borrow_mut();
+                b.clear();
+                b.extend(app.boundary_edges().iter().flatten());
+                OUT_LEN.with(|l| *l.borrow_mut() = b.len());
+                b.as_ptr()
+            })
+        },
+        std::ptr::null(),
+    )
+}
+
+/// The normal contact pressure per vertex after the last step, Pa (f32; 0 off contact).
+#[unsafe(no_mangle)]
+pub extern "C" fn contact_pressure() -> *const f32 {
+    with_app(
+        |app| out_f32(app.contact_pressure().iter().copied()),
+        std::ptr::null(),
+    )
+}
+
 /// A field (0 von Mises per triangle, 1 displacement per vertex, 2 det F per triangle), f32.
 #[unsafe(no_mangle)]
 pub extern "C" fn field(kind: u32) -> *const f32 {
@@ -281,7 +308,7 @@ pub extern "C" fn field(kind: u32) -> *const f32 {
 /// factor, slowed (0/1), peak von Mises, inverted, min det F, area error, area change, has
 /// grab force (0/1), force x, force y, stopped on an error (0/1; the message is in the text
 /// buffer), contacts, their smallest gap (m; a huge value without contacts), their total
-/// force x, y (N).
+/// force x, y (N), the peak contact pressure (Pa), the contact length (m).
 #[unsafe(no_mangle)]
 pub extern "C" fn hud() -> *const f64 {
     with_app(
@@ -312,6 +339,8 @@ pub extern "C" fn hud() -> *const f64 {
                 h.min_gap.min(f64::MAX),
                 h.contact_force[0],
                 h.contact_force[1],
+                h.contact_pressure_peak,
+                h.contact_length,
             ])
         },
         std::ptr::null(),

@@ -338,6 +338,19 @@ fn case_d_runs_under_implicit_euler_and_vbd_with_contact_in_the_hud() {
             "{solver}: contact force {:?} N",
             hud.contact_force
         );
+        // The pressure shown is the largest vertex pressure of the body's boundary, and the
+        // contact length a part of the body's length (about 1.8 m).
+        let peak = app.contact_pressure().iter().copied().fold(0.0, f64::max);
+        assert!(
+            hud.contact_pressure_peak > 0.0 && hud.contact_pressure_peak == peak,
+            "{solver}: peak pressure {} Pa, largest vertex pressure {peak} Pa",
+            hud.contact_pressure_peak
+        );
+        assert!(
+            hud.contact_length > 0.0 && hud.contact_length < 1.8,
+            "{solver}: contact length {} m",
+            hud.contact_length
+        );
     }
 }
 

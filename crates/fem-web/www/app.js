@@ -79,6 +79,15 @@ const palette = [0, 1, 2].map((kind) =>
   Array.from({ length: 256 }, (_, i) => colour((i + 0.5) / 256, kind)),
 );
 
+// The contact pressure's ramp (dark purple, red, orange, light yellow), apart from the fields'.
+function pressureColour(t) {
+  t = Math.min(1, Math.max(0, t));
+  const r = Math.round(255 * Math.min(1, 0.25 + 1.5 * t));
+  const g = Math.round(255 * Math.max(0, Math.min(1, 1.4 * t * t)));
+  const b = Math.round(255 * (0.35 * (1 - t) + 0.55 * t * t * t));
+  return `rgb(${r},${g},${b})`;
+}
+
 // --- A pane ---------------------------------------------------------------------------------
 
 class Pane {
@@ -86,6 +95,7 @@ class Pane {
     this.io = io;
     this.index = index;
     this.triangles = new Uint32Array(0);
+    this.boundary = new Uint32Array(0);
     this.bounds = [0, 0, 1, 1];
     this.camera = { scale: 1, ox: 0, oy: 0, dpr: 1 };
     this.drawMs = 0;
@@ -112,6 +122,7 @@ class Pane {
   loaded() {
     const { x, u32, f64 } = this.io;
     this.triangles = u32(x.triangles());
+    this.boundary = u32(x.boundary_edges());
     this.bounds = f64(x.bounds());
     this.sync();
   }
@@ -140,7 +151,10 @@ class Pane {
       this.sync();
       return false;
     }
-    if (r === 2) this.triangles = u32(x.triangles());
+    if (r === 2) {
+      this.triangles = u32(x.triangles());
+      this.boundary = u32(x.boundary_edges());
+    }
     this.bounds = f64(x.bounds());
     showError("");
     this.sync();
@@ -239,6 +253,7 @@ class Pane {
       ctx.fill();
       if (edges) ctx.stroke();
     }
+    this.drawPressure(pos);
     if (hand.on) {
       ctx.strokeStyle = "#06c";
       ctx.lineWidth = 2;
@@ -248,6 +263,48 @@ class Pane {
       ctx.stroke();
     }
     return [lo, top];
+  }
+
+  // The contact pressure along the boundary: each loaded boundary edge as a thick line whose
+  // colour runs linearly between its ends' pressures, and a legend in kPa at the top left.
+  drawPressure(pos) {
+    const { x, f32 } = this.io;
+    const p = f32(x.contact_pressure());
+    let top = 0;
+    for (const v of p) if (Number.isFinite(v)) top = Math.max(top, v);
+    if (!(top > 0)) return;
+    const ctx = this.ctx;
+    const e = this.boundary;
+    ctx.lineWidth = 5 * this.camera.dpr;
+    ctx.lineCap = "round";
+    for (let k = 0; k < e.length / 2; k++) {
+      const a = e[2 * k];
+      const b = e[2 * k + 1];
+      if (!(Math.max(p[a], p[b]) > 0)) continue;
+      const pa = this.toScreen(pos[2 * a], pos[2 * a + 1]);
+      const pb = this.toScreen(pos[2 * b], pos[2 * b + 1]);
+      const g = ctx.createLinearGradient(pa[0], pa[1], pb[0], pb[1]);
+      g.addColorStop(0, pressureColour(p[a] / top));
+      g.addColorStop(1, pressureColour(p[b] / top));
+      ctx.strokeStyle = g;
+      ctx.beginPath();
+      ctx.moveTo(...pa);
+      ctx.lineTo(...pb);
+      ctx.stroke();
+    }
+    ctx.lineCap = "butt";
+    const d = this.camera.dpr;
+    const [lx, ly, lw, lh] = [10 * d, 22 * d, 120 * d, 8 * d];
+    const g = ctx.createLinearGradient(lx, 0, lx + lw, 0);
+    for (let i = 0; i <= 8; i++) g.addColorStop(i / 8, pressureColour(i / 8));
+    ctx.fillStyle = g;
+    ctx.fillRect(lx, ly, lw, lh);
+    ctx.fillStyle = "#222";
+    ctx.font = `${11 * d}px sans-serif`;
+    ctx.fillText("contact pressure [kPa]", lx, ly - 4 * d);
+    ctx.fillText("0", lx, ly + lh + 11 * d);
+    const label = (top / 1000).toPrecision(3);
+    ctx.fillText(label, lx + lw - ctx.measureText(label).width, ly + lh + 11 * d);
   }
 
   hud(fps) {
@@ -279,6 +336,7 @@ class Pane {
           `force ${h[18].toFixed(1)}, ${h[19].toFixed(1)} N`
         : "") +
       `\n` +
+      `contact pressure ${(h[20] / 1000).toPrecision(4)} kPa peak, length ${h[21].toFixed(4)} m\n` +
       `grab force      ${force}`;
   }
 }

@@ -14,6 +14,7 @@ mod explicit;
 mod grab;
 mod implicit;
 mod position_based;
+mod pressure;
 mod projective;
 mod quasi_newton;
 mod regions;

@@ -283,6 +283,13 @@ try {
       `physics ${mean(4).toFixed(2)} ms a frame, real-time factor ${mean(5).toFixed(3)}, ` +
       `${slowed} of ${hud.length} frames slowed`,
   );
+  // The body lies on the ground: the heads-up display shows a contact pressure and length.
+  const last = hud[hud.length - 1];
+  const hudText = await page.evaluate(() => document.querySelector(".hud").textContent);
+  check(
+    last[16] > 0 && last[20] > 0 && last[21] > 0 && hudText.includes("kPa peak"),
+    `case D's contact pressure is shown (${(last[20] / 1000).toFixed(2)} kPa peak over ${last[21].toFixed(3)} m)`,
+  );
   // The debris can be grabbed and lifted with the mouse.
   const debris = async () => {
     const sc = await page.evaluate(() => Array.from(window.fem.scenery(0)));

@@ -8,7 +8,8 @@ use clap::Args;
 use fem_cases::files::load_case_or_file;
 use fem_cases::outdir::OutDir;
 use fem_cases::pictures::{
-    FieldKind, FramePicture, GifOptions, shared_range, style, time_label, write_gif,
+    FieldKind, FramePicture, GifOptions, overlay_pressure, shared_range, style, time_label,
+    write_gif,
 };
 use fem_cases::run::{RunOptions, run_scene_with};
 use fem_scene::drag::DragTrajectory;
@@ -201,14 +202,20 @@ pub fn run(args: &RunArgs) -> Result<(), String> {
             .snapshots
             .last()
             .ok_or("the run recorded no frame to draw")?;
-        let picture = FramePicture::new(&result, last, field, "").with_ground(ground);
+        let picture = FramePicture::new(&result, last, field, "")
+            .with_ground(ground)
+            .with_contact_pressure();
         let mut st = style(field, &title, 720, 400);
         st.range = shared_range(&[&picture], field);
         st.time_label = Some(time_label(&result, last.time));
         st.wireframe = args.wireframe;
         let path = dir.join("final.png");
-        fem_render::frame::render(&[picture.view()], &st)
-            .and_then(|r| r.image.write_png(&path))
+        let mut rendered = fem_render::frame::render(&[picture.view()], &st)
+            .map_err(|e| format!("{}: {e}", path.display()))?;
+        overlay_pressure(&mut rendered, &[&picture], None).map_err(|e| e.to_string())?;
+        rendered
+            .image
+            .write_png(&path)
             .map_err(|e| format!("{}: {e}", path.display()))?;
         pictures.push("final.png".to_owned());
     }
@@ -272,6 +279,18 @@ pub fn run(args: &RunArgs) -> Result<(), String> {
             s.final_contacts,
             s.final_contact_force[0],
             s.final_contact_force[1]
+        );
+        let at = s.contact_peak_pressure_at.map_or_else(
+            || "-".to_owned(),
+            |p| format!("[{}, {}] m", fixed(p[0], 3), fixed(p[1], 3)),
+        );
+        println!(
+            "contact pressure: peak {:.4} kPa (step {}, at {at}), {:.4} kPa at the end over a contact length of {:.4} m, impulse {:.4e} N s",
+            s.contact_peak_pressure * 1e-3,
+            s.contact_peak_pressure_step,
+            s.final_contact_pressure_peak * 1e-3,
+            s.final_contact_length,
+            s.contact_impulse
         );
     }
     println!(
