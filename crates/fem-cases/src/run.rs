@@ -501,7 +501,8 @@ fn write_outputs(scene: &LoadedScene, result: &RunResult, dir: &Path) -> Result<
             .iter()
             .map(|t| t.map(|i| i as usize))
             .collect(),
-        ..Default::default()
+        regions: result.mesh_regions.0.clone(),
+        region_names: result.mesh_regions.1.clone(),
     };
     write_atomic(
         &dir.join("mesh.json"),

@@ -4,9 +4,10 @@
 //!
 //! [`human_body`] is the skin: an adult of about 1.75 m (head, neck, chest, abdomen, pelvis,
 //! arms, hands, legs with calves, feet). The arms hang mirror-symmetric, clear of the trunk. The
-//! legs differ, so a side view shows two legs: the right leg stands straight, the left is in
-//! mid-stride, flexed 30 degrees at the hip and 45 at the knee (knee forward, shank sloping
-//! back 15 degrees, foot off the ground), and the silhouette stays one connected region.
+//! legs differ, so a side view shows two legs: the right leg stands straight, the left is bent,
+//! flexed 65 degrees at the hip and 130 at the knee (lying on the back: the knee up and the
+//! foot flat beside the other thigh, the hook-lying pose), and the silhouette stays one
+//! connected region. The right shin, from the knee to the ankle, has nothing above it.
 //!
 //! [`human_skeleton`] gives the bones inside it, each made of closed convex parts (capsules and
 //! ellipsoids) for [`crate::pipeline::mesh_surface_with_skeleton`]: `skull`, `spine` (a chain
@@ -59,19 +60,38 @@ impl Leg {
         }
     }
 
-    /// The left leg in mid-stride: thigh 0.42 m flexed 30 degrees forward, shank 0.40 m
-    /// sloping 15 degrees back from vertical.
+    /// The left leg bent: thigh 0.42 m flexed 65 degrees forward, knee flexed 130 degrees, so
+    /// the shank (0.40 m) slopes back 65 degrees from vertical and the ankle comes back to the
+    /// plane of the right leg. Lying on the back, this is the hook-lying pose: the knee up,
+    /// the foot flat beside the other thigh.
     fn left() -> Self {
-        let (s30, c30) = libm::sincos(30f64.to_radians());
-        let (s15, c15) = libm::sincos(15f64.to_radians());
+        let (s65, c65) = libm::sincos(65f64.to_radians());
         let hip = [0.095, 0.90, 0.0];
-        let knee = [0.10, hip[1] - 0.42 * c30, 0.42 * s30];
-        let ankle = [0.105, knee[1] - 0.40 * c15, knee[2] - 0.40 * s15];
+        let knee = [0.10, hip[1] - 0.42 * c65, 0.42 * s65];
+        let ankle = [0.105, knee[1] - 0.40 * c65, knee[2] - 0.40 * s65];
         Self {
             hip,
             knee,
             ankle,
             side: 1.0,
+        }
+    }
+
+    /// The foot: centre and semi-axes of its ellipsoid. The straight leg's foot points
+    /// forward (+Z); the bent leg's points down (-Y), its sole towards -Z, so that lying on
+    /// the back both soles face the same way as the body.
+    fn foot(&self) -> ([f64; 3], [f64; 3]) {
+        let a = self.ankle;
+        if self.side < 0.0 {
+            (
+                [a[0] - 0.005, a[1] - 0.035, a[2] + 0.06],
+                [0.045, 0.045, 0.125],
+            )
+        } else {
+            (
+                [a[0] + 0.005, a[1] - 0.06, a[2] - 0.035],
+                [0.045, 0.125, 0.045],
+            )
         }
     }
 
@@ -157,13 +177,12 @@ pub fn human_body() -> Surface3 {
         let f = leg.shank_frame();
         ellipsoid_in(
             &mut s,
-            f.at(0.13, -0.022, 0.0),
+            f.at(0.14, -0.03, 0.0),
             [f.axis, f.anterior, f.lateral],
-            [0.12, 0.045, 0.048],
+            [0.13, 0.058, 0.05],
         );
-        let a = leg.ankle;
-        let foot = [a[0] + 0.005 * leg.side, a[1] - 0.035, a[2] + 0.06];
-        ellipsoid(&mut s, foot, [0.045, 0.045, 0.125]);
+        let (foot, radii) = leg.foot();
+        ellipsoid(&mut s, foot, radii);
     }
     s
 }
@@ -198,7 +217,8 @@ pub fn human_skeleton() -> Skeleton {
             capsule(
                 s,
                 t.at(0.03, 0.0, 0.0),
-                t.at(t.length - 0.035, 0.0, 0.0),
+                // Short of the knee by 6 cm: room for the bent knee's tibial plateau.
+                t.at(t.length - 0.06, 0.0, 0.0),
                 0.014,
                 0.014,
             )
@@ -226,11 +246,14 @@ pub fn human_skeleton() -> Skeleton {
                 [0.022, 0.028, 0.032],
             )
         }));
-        // Fibula: thin, lateral and posterior, below the tibial plateau.
+        // Fibula: thin, lateral and posterior, below the tibial plateau. The bent leg's shank
+        // points almost along the front view's line of sight, so there its fibula starts lower
+        // (its head would otherwise hide behind the plateau's outline).
+        let head = if leg.side > 0.0 { 0.2 } else { 0.09 };
         fibula.push(part(&|s| {
             capsule(
                 s,
-                f.at(0.09, -0.02, 0.023),
+                f.at(head, -0.02, 0.023),
                 f.at(bottom, -0.02, 0.023),
                 0.0065,
                 0.0065,

@@ -348,6 +348,9 @@ pub struct RunResult {
     pub region_series: Vec<Vec<RegionFrame>>,
     /// The material region of each triangle (an index into [`Summary::regions`]).
     pub region_tags: Vec<u32>,
+    /// The regions the mesh carries (tissues: the built-in body's bones), per triangle, and
+    /// their names; empty when it carries none.
+    pub mesh_regions: (Vec<u32>, Vec<String>),
 }
 
 impl RunResult {
@@ -702,6 +705,7 @@ fn run_with<E: Energy>(
     Ok(RunResult {
         region_series,
         region_tags,
+        mesh_regions: (mesh.region_tags().to_vec(), mesh.region_names().to_vec()),
         summary,
         snapshots,
         rest: mesh.vertices().iter().map(|p| [p.x, p.y]).collect(),

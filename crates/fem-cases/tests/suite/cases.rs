@@ -186,62 +186,31 @@ fn span_x(poly: &[[f64; 2]]) -> (f64, f64) {
         })
 }
 
-/// The element with the largest final von Mises stress: its centroid.
-fn peak_centroid(r: &RunResult) -> [f64; 2] {
-    let (t, _) = r
-        .final_von_mises
-        .iter()
-        .enumerate()
-        .filter(|(_, v)| v.is_finite())
-        .max_by(|a, b| a.1.total_cmp(b.1))
-        .unwrap();
-    let c = r.triangles[t].map(|i| r.final_positions[i as usize]);
-    [
-        (c[0][0] + c[1][0] + c[2][0]) / 3.0,
-        (c[0][1] + c[1][1] + c[2][1]) / 3.0,
-    ]
-}
-
-/// The largest final per-element von Mises stress among the elements whose centroid lies in
-/// the x-span `[lo, hi]`, Pa.
-fn peak_within(r: &RunResult, lo: f64, hi: f64) -> f64 {
-    r.final_von_mises
-        .iter()
-        .zip(&r.triangles)
-        .filter(|(v, tri)| {
-            let x = tri
-                .iter()
-                .map(|&i| r.final_positions[i as usize][0])
-                .sum::<f64>()
-                / 3.0;
-            v.is_finite() && x >= lo && x <= hi
-        })
-        .map(|(v, _)| *v)
-        .fold(0.0, f64::max)
-}
-
-/// Checks of a settled case D run: stable, no inverted element, the peak von Mises stress over
-/// the run under the debris' x-span, and at rest the stress under the debris within 10 % of
-/// the body's peak. At rest the debris stands on its two bottom corners (corner-edge contact),
-/// and the bending of the leg just beside it rivals the crush under it: on the built-in body
-/// the peak at rest lies 3 cm left of the slab, 2 % above the largest stress under it.
+/// Checks of a settled case D run: stable, no inverted element, the debris resting on the leg
+/// (above the ground by more than a centimetre), and the stress peaks at the debris: the
+/// body's peak over the run within the debris' x-span, and, when the body has material
+/// regions, each region's peak within that span widened by 5 cm (on the built-in body the
+/// soft tissue's lies 2 cm beyond the slab's corner, at the distal end of the tibia).
 fn assert_peak_under_debris(r: &RunResult) {
     let s = &r.summary;
     assert!(!s.blew_up, "{:?}", s.blow_up_message);
     assert_eq!(s.inverted_elements, 0);
     let (lo, hi) = span_x(&r.final_obstacles[0]);
-    let peak = peak_centroid(r);
-    let under = peak_within(r, lo, hi);
-    assert!(
-        under >= 0.9 * s.final_max_von_mises,
-        "at rest {under} Pa under the debris (x in [{lo}, {hi}]), peak {} Pa at {peak:?}",
-        s.final_max_von_mises
-    );
     assert!(
         s.max_von_mises_at[0] >= lo && s.max_von_mises_at[0] <= hi,
         "peak over the run at {:?}, debris spans [{lo}, {hi}]",
         s.max_von_mises_at
     );
+    for region in &s.regions {
+        let x = region.peak_von_mises_at[0];
+        assert!(
+            x >= lo - 0.05 && x <= hi + 0.05,
+            "{}: peak {} Pa at {:?}, debris spans [{lo}, {hi}]",
+            region.name,
+            region.peak_von_mises,
+            region.peak_von_mises_at
+        );
+    }
     // The debris rests on the leg: it has sunk but not through it (it stays above the
     // ground by more than a centimetre).
     let bottom = r.final_obstacles[0]
@@ -251,11 +220,12 @@ fn assert_peak_under_debris(r: &RunResult) {
     assert!(bottom > 0.01, "debris bottom at {bottom} m");
 }
 
-/// Case D on the built-in body: "the stress distribution on the leg when compressed by the
-/// debris": the peak von Mises stress lies under the debris (see `assert_peak_under_debris`).
+/// Case D on the built-in body with its skeleton: "the stress distribution on the leg when
+/// compressed by the debris": the peaks lie at the debris (see `assert_peak_under_debris`).
 #[test]
 fn case_d_peak_von_mises_lies_under_the_debris() {
     let r = run("case-d", &[]);
+    assert_eq!(r.summary.regions.len(), 2);
     assert_peak_under_debris(&r);
 }
 
@@ -286,6 +256,8 @@ fn case_d_on_the_real_body() {
             "mesh.alpha=0.025",
             "mesh.max_area=1e-3",
             "mesh.rotate_deg=86.64",
+            // The model file carries no bones: one material.
+            "regions=[]",
             "obstacles.0.polygon=[[1.3089, 0.1358], [1.5289, 0.1358], [1.5289, 0.3158], [1.3089, 0.3158]]",
             "probes.0.point=[1.42, 0.13]",
         ],

@@ -109,7 +109,13 @@ fn builtin_cases_say_what_the_paper_says() {
     assert_eq!(d.energy, EnergyKind::NeoHookean);
     assert_eq!(d.material.youngs_modulus, 1.85e6);
     assert_eq!(d.material.total_mass, Some(70.0));
-    assert_eq!(d.solver.dt, 1e-4);
+    // The paper's soft tissue around cortical bone (about 10^4 times stiffer), which makes the
+    // paper's explicit 0.1 ms step unstable: implicit Euler at a headset's frame step
+    // (docs/cases.md, departure from the paper).
+    assert_eq!(d.regions.len(), 1);
+    assert_eq!(d.regions[0].youngs_modulus, Some(1.7e10));
+    assert_eq!(d.solver.kind, SolverKind::Implicit);
+    assert_eq!(d.solver.dt, 1.0 / 90.0);
     assert_eq!(d.obstacles.len(), 1);
     assert_eq!(d.obstacles[0].motion, MotionName::Dynamic);
     assert!(d.ground.is_some());

@@ -215,11 +215,11 @@ fn case_a_writes_every_output_in_contract_form() {
 #[test]
 fn cases_b_c_d_run_a_few_steps() {
     let dir = scratch("cases");
-    for (case, energy, rows) in [
-        ("case-b", "stvk", 3),
-        ("case-c", "stvk", 3),
-        // frame_every = 100: step 0 and the last step.
-        ("case-d", "neo-hookean", 2),
+    for (case, energy, solver, rows) in [
+        ("case-b", "stvk", "explicit", 3),
+        ("case-c", "stvk", "explicit", 3),
+        // Implicit Euler at 90 Hz, a frame every step.
+        ("case-d", "neo-hookean", "implicit", 21),
     ] {
         let out_dir = dir.join(case);
         run_ok(&[case, "--steps", "20"], &out_dir);
@@ -228,7 +228,7 @@ fn cases_b_c_d_run_a_few_steps() {
         check_contract_fields(&s);
         assert_eq!(s["scene"], case);
         assert_eq!(s["energy"], energy);
-        assert_eq!(s["solver"], "explicit");
+        assert_eq!(s["solver"], solver);
         assert_eq!(s["steps"], 20);
         assert_eq!(s["blew_up"], false);
         let (header, data) = csv(&out_dir.join("probes.csv"));
