@@ -174,7 +174,8 @@ fn directed(a: &[PolygonWithHoles], b: &[PolygonWithHoles]) -> f64 {
     worst
 }
 
-fn segment_distance(x: [f64; 2], u: [f64; 2], v: [f64; 2]) -> f64 {
+/// Distance from `x` to the segment `uv`.
+pub fn segment_distance(x: [f64; 2], u: [f64; 2], v: [f64; 2]) -> f64 {
     let (dx, dy) = (v[0] - u[0], v[1] - u[1]);
     let len2 = dx * dx + dy * dy;
     let t = if len2 > 0.0 {

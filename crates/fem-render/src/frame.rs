@@ -958,19 +958,7 @@ fn draw_panel(
     let mask = if inside {
         None
     } else {
-        let mut m = sk::Mask::new(w, h);
-        if let (Some(m), Some(r)) = (
-            m.as_mut(),
-            sk::Rect::from_ltrb(x0 as f32, y0 as f32, x1 as f32, y1 as f32),
-        ) {
-            m.fill_path(
-                &sk::PathBuilder::from_rect(r),
-                sk::FillRule::Winding,
-                false,
-                sk::Transform::identity(),
-            );
-        }
-        m
+        panel_mask(w, h, [x0, y0, x1, y1])
     };
     let Some(mut pixmap) = sk::PixmapMut::from_bytes(image.as_rgba_mut(), w, h) else {
         return;
@@ -1107,6 +1095,24 @@ fn draw_colorbar(
         center,
         TEXT_COLOR,
     );
+}
+
+/// A clip mask of a `w` x `h` image that lets through the pixels inside `rect` (`[x0, y0, x1,
+/// y1]`): what draws over a panel stays inside it.
+pub(crate) fn panel_mask(w: u32, h: u32, [x0, y0, x1, y1]: [u32; 4]) -> Option<sk::Mask> {
+    let mut m = sk::Mask::new(w, h);
+    if let (Some(m), Some(r)) = (
+        m.as_mut(),
+        sk::Rect::from_ltrb(x0 as f32, y0 as f32, x1 as f32, y1 as f32),
+    ) {
+        m.fill_path(
+            &sk::PathBuilder::from_rect(r),
+            sk::FillRule::Winding,
+            false,
+            sk::Transform::identity(),
+        );
+    }
+    m
 }
 
 #[cfg(test)]

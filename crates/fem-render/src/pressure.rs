@@ -22,7 +22,9 @@
 use resvg::tiny_skia as sk;
 
 use crate::colormap::Colormap;
-use crate::frame::{BACKGROUND, FRAME_COLOR, PanelGeometry, TEXT_COLOR, boundary_edges};
+use crate::frame::{
+    BACKGROUND, FRAME_COLOR, PanelGeometry, TEXT_COLOR, boundary_edges, panel_mask,
+};
 use crate::raster::Canvas;
 use crate::text::{self, Align};
 use crate::{Image, RenderError, Result};
@@ -120,19 +122,7 @@ pub fn draw_pressure(
             .sample((p * overlay.scale - lo) / (hi - lo))
     };
     let (w, h) = (image.width(), image.height());
-    let [x0, y0, x1, y1] = panel.rect();
-    let mut mask = sk::Mask::new(w, h);
-    if let (Some(m), Some(r)) = (
-        mask.as_mut(),
-        sk::Rect::from_ltrb(x0 as f32, y0 as f32, x1 as f32, y1 as f32),
-    ) {
-        m.fill_path(
-            &sk::PathBuilder::from_rect(r),
-            sk::FillRule::Winding,
-            false,
-            sk::Transform::identity(),
-        );
-    }
+    let mask = panel_mask(w, h, panel.rect());
     if let Some(mut pixmap) = sk::PixmapMut::from_bytes(image.as_rgba_mut(), w, h) {
         let stroke = sk::Stroke {
             width: LINE_WIDTH,

@@ -759,10 +759,15 @@ fn body_size(x: &[Vec2]) -> Real {
 /// modulus of element `e`'s region (`psi`'s terms are of that order, whatever `psi` is): the
 /// size its round-off is measured against.
 fn potential_scale<E: Energy>(mesh: &Mesh, energies: &ElementEnergies<E>) -> Real {
-    let moduli: Vec<Real> = (energies.energies().iter())
-        .map(|e| e.dpk1(&fem_core::math::Mat2::identity())[(0, 0)].abs())
-        .collect();
-    (mesh.elements().iter().enumerate())
-        .map(|(t, el)| moduli[energies.tag(t) as usize] * el.area)
+    // Region by region (a handful), so nothing is allocated per solve.
+    (energies.energies().iter().enumerate())
+        .map(|(k, e)| {
+            let modulus = e.dpk1(&fem_core::math::Mat2::identity())[(0, 0)].abs();
+            let area: Real = (mesh.elements().iter().enumerate())
+                .filter(|&(t, _)| energies.tag(t) as usize == k)
+                .map(|(_, el)| el.area)
+                .sum();
+            modulus * area
+        })
         .sum()
 }

@@ -3,19 +3,8 @@
 
 #![allow(dead_code)]
 
+use fem_mesh::quality::segment_distance;
 use fem_mesh::{InnerRegion, Mesh2, PolygonWithHoles};
-
-/// Distance from `x` to the segment `uv`.
-fn segment_distance(x: [f64; 2], u: [f64; 2], v: [f64; 2]) -> f64 {
-    let (dx, dy) = (v[0] - u[0], v[1] - u[1]);
-    let len2 = dx * dx + dy * dy;
-    let t = if len2 > 0.0 {
-        (((x[0] - u[0]) * dx + (x[1] - u[1]) * dy) / len2).clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
-    (x[0] - u[0] - t * dx).hypot(x[1] - u[1] - t * dy)
-}
 
 /// Distance from `p` to the nearest ring edge of `polygon`.
 pub fn boundary_distance(p: [f64; 2], polygon: &PolygonWithHoles) -> f64 {
