@@ -263,6 +263,21 @@ pub enum ObstacleMotion {
     },
 }
 
+/// One more move of a kinematic obstacle after the window of its [`ObstacleMotion::Kinematic`]
+/// (see [`Obstacle::set_moves`]): a velocity held during `[start, end]`, e.g. debris lowered
+/// onto a leg and later lifted off it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ObstacleMove {
+    /// Translational velocity of the centroid, m/s.
+    pub velocity: Vec2,
+    /// Angular velocity, rad/s (counter-clockwise positive), about the centroid.
+    pub angular_velocity: Real,
+    /// Window start, s.
+    pub start: Real,
+    /// Window end, s (may be infinite for the last move).
+    pub end: Real,
+}
+
 /// A rigid polygonal obstacle.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Obstacle {
@@ -273,6 +288,8 @@ pub struct Obstacle {
     /// Largest distance of a polygon vertex from the centroid, m.
     radius: Real,
     motion: ObstacleMotion,
+    /// A kinematic obstacle's moves after its first window, in time order.
+    then: Vec<ObstacleMove>,
     /// Moment of inertia about the centroid, kg m^2 (dynamic bodies only, else 0).
     inertia: Real,
 }
@@ -477,8 +494,88 @@ impl Obstacle {
             centroid,
             radius,
             motion,
+            then: Vec::new(),
             inertia,
         })
+    }
+
+    /// Give a kinematic obstacle further moves after the window of its
+    /// [`ObstacleMotion::Kinematic`], in time order: each starts at or after the end of the one
+    /// before (so at most one velocity holds at a time; between windows the obstacle stands
+    /// still). Replaces earlier ones; an empty list leaves the one window. Fails, naming
+    /// `obstacles[index].moves[k]`, for an obstacle that is not kinematic, a non-finite
+    /// velocity, or a window that is not ordered or not after the previous one.
+    pub fn set_moves(&mut self, index: usize, moves: &[ObstacleMove]) -> Result<(), SolverError> {
+        let ObstacleMotion::Kinematic { end: first_end, .. } = self.motion else {
+            return Err(SolverError::invalid(
+                format!("obstacles[{index}].moves"),
+                moves.len(),
+                "only a kinematic obstacle has moves",
+            ));
+        };
+        let mut previous = first_end;
+        for (k, m) in moves.iter().enumerate() {
+            let f = format!("obstacles[{index}].moves[{k}]");
+            check_finite_vec(&format!("{f}.velocity"), m.velocity)?;
+            if !m.angular_velocity.is_finite() {
+                return Err(SolverError::invalid(
+                    format!("{f}.angular_velocity"),
+                    m.angular_velocity,
+                    "must be finite (rad/s)",
+                ));
+            }
+            if !(m.start.is_finite() && m.start >= previous) {
+                return Err(SolverError::invalid(
+                    format!("{f}.start"),
+                    m.start,
+                    format!(
+                        "must be finite and at or after the end of the window before it ({previous} s)"
+                    ),
+                ));
+            }
+            if m.end.is_nan() || m.end < m.start {
+                return Err(SolverError::invalid(
+                    format!("{f}.end"),
+                    m.end,
+                    "must be >= start (s)",
+                ));
+            }
+            previous = m.end;
+        }
+        self.then = moves.to_vec();
+        Ok(())
+    }
+
+    /// A kinematic obstacle's moves after its first window (empty for the others).
+    pub fn moves(&self) -> &[ObstacleMove] {
+        &self.then
+    }
+
+    /// A kinematic obstacle's windows: the first, then its [`moves`](Self::moves).
+    fn windows(&self) -> impl Iterator<Item = ObstacleMove> + '_ {
+        let first = match self.motion {
+            ObstacleMotion::Kinematic {
+                velocity,
+                angular_velocity,
+                start,
+                end,
+            } => Some(ObstacleMove {
+                velocity,
+                angular_velocity,
+                start,
+                end,
+            }),
+            _ => None,
+        };
+        first.into_iter().chain(self.then.iter().copied())
+    }
+
+    /// A kinematic obstacle's schedule `[start, end]`: from its first window's start to its
+    /// last window's end (`None` for other obstacles).
+    pub fn schedule(&self) -> Option<(Real, Real)> {
+        let start = self.windows().next()?.start;
+        let end = self.windows().last()?.end;
+        Some((start, end))
     }
 
     /// How the obstacle moves.
@@ -525,36 +622,32 @@ impl Obstacle {
     /// A kinematic obstacle's pose `[x, y, angle]` at time `t` on its schedule from its
     /// initial pose (`None` for other obstacles).
     pub(crate) fn scheduled_pose(&self, t: Real) -> Option<[Real; 3]> {
-        if let ObstacleMotion::Kinematic {
-            velocity,
-            angular_velocity,
-            start,
-            end,
-        } = self.motion
-        {
-            let moved = window_overlap(0.0, t, start, end);
-            let c = self.centroid + velocity * moved;
-            Some([c.x, c.y, angular_velocity * moved])
-        } else {
-            None
+        if !matches!(self.motion, ObstacleMotion::Kinematic { .. }) {
+            return None;
         }
+        let (mut c, mut angle) = (self.centroid, 0.0);
+        for m in self.windows() {
+            let moved = window_overlap(0.0, t, m.start, m.end);
+            c += m.velocity * moved;
+            angle += m.angular_velocity * moved;
+        }
+        Some([c.x, c.y, angle])
     }
 
     /// Advance a kinematic obstacle's pose over `[t, t + dt]` (velocity = mean over the step).
     pub(crate) fn advance_kinematic(&self, body: &mut BodyState, t: Real, dt: Real) {
-        if let ObstacleMotion::Kinematic {
-            velocity,
-            angular_velocity,
-            start,
-            end,
-        } = self.motion
-        {
-            let frac = window_overlap(t, dt, start, end) / dt;
-            body.velocity = velocity * frac;
-            body.angular_velocity = angular_velocity * frac;
-            body.position += body.velocity * dt;
-            body.angle += body.angular_velocity * dt;
+        if !matches!(self.motion, ObstacleMotion::Kinematic { .. }) {
+            return;
         }
+        body.velocity = Vec2::zeros();
+        body.angular_velocity = 0.0;
+        for m in self.windows() {
+            let frac = window_overlap(t, dt, m.start, m.end) / dt;
+            body.velocity += m.velocity * frac;
+            body.angular_velocity += m.angular_velocity * frac;
+        }
+        body.position += body.velocity * dt;
+        body.angle += body.angular_velocity * dt;
     }
 
     /// Penetration of the world point `p` into the obstacle at pose `(position, cos, sin)`:

@@ -135,7 +135,9 @@ use fem_core::energy::Energy;
 use fem_core::math::Real;
 
 pub use bc::{PrescribedMotion, Region};
-pub use contact::{BodyState, Contact, ContactKind, ContactParams, Ground, ObstacleMotion};
+pub use contact::{
+    BodyState, Contact, ContactKind, ContactParams, Ground, ObstacleMotion, ObstacleMove,
+};
 pub use error::SolverError;
 pub use explicit::{ExplicitParams, ExplicitScheme, ExplicitStepper};
 pub use grab::{Grab, GrabModel};

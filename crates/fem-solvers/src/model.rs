@@ -589,6 +589,24 @@ impl<E: Energy> Model<E> {
         &self.obstacles
     }
 
+    /// Give kinematic obstacle `index` further moves after its first window (see
+    /// [`Obstacle::set_moves`]: in time order, e.g. lowered onto the body, held, lifted off).
+    pub fn set_obstacle_moves(
+        &mut self,
+        index: usize,
+        moves: &[crate::contact::ObstacleMove],
+    ) -> Result<(), SolverError> {
+        let count = self.obstacles.len();
+        let obstacle = self.obstacles.get_mut(index).ok_or_else(|| {
+            SolverError::invalid(
+                "obstacles",
+                index,
+                format!("no such obstacle (the model has {count})"),
+            )
+        })?;
+        obstacle.set_moves(index, moves)
+    }
+
     /// Penalty contact parameters.
     pub fn contact_params(&self) -> &ContactParams {
         &self.contact

@@ -61,8 +61,10 @@ use fem_core::clock::Stopwatch;
 )]
 pub struct NewtonParams {
     /// Stop when the residual (the 2-norm of the free part of the gradient, N) falls below
-    /// `tolerance` times the force scale (the larger of the first residual and the norm of the
-    /// external load, and 1e-12 N), dimensionless, in the open interval (0, 1). Default `1e-8`.
+    /// `tolerance` times the force scale (the largest of the first residual, the norm of the
+    /// external load, the norm of the elastic forces on the free DOFs at the start, which at
+    /// equilibrium balance the load and the contact forces, and 1e-12 N), dimensionless, in the
+    /// open interval (0, 1). Default `1e-8`.
     pub tolerance: Real,
     /// Most Newton iterations per solve (>= 1). Default 50.
     pub max_iterations: usize,
@@ -159,6 +161,8 @@ pub(crate) struct NewtonSolver {
     stiffness: Stiffness,
     scratch: Scratch,
     forces: Vec<Vec2>,
+    /// The 2-norm of the elastic forces on the free DOFs at the last gradient, N.
+    elastic_force: Real,
     gradient: Vec<Real>,
     direction: Vec<Real>,
     trial: Vec<Vec2>,
@@ -343,6 +347,7 @@ impl NewtonSolver {
             stiffness,
             scratch: Scratch::new(),
             forces: vec![Vec2::zeros(); mesh.n_vertices()],
+            elastic_force: 0.0,
             gradient: vec![0.0; n_free],
             direction: vec![0.0; n_free],
             trial: vec![Vec2::zeros(); mesh.n_vertices()],
@@ -383,6 +388,15 @@ impl NewtonSolver {
         contact: Option<(&BarrierContact, &[[Real; 3]])>,
     ) -> Real {
         populate_forces(p.mesh, p.energy, x, &mut self.forces, &mut self.scratch);
+        let mut elastic_sq = 0.0;
+        for (v, f) in self.forces.iter().enumerate() {
+            for d in 0..2 {
+                if self.free[2 * v + d] != u32::MAX {
+                    elastic_sq += f[d] * f[d];
+                }
+            }
+        }
+        self.elastic_force = elastic_sq.sqrt();
         if let Some((c, q)) = contact {
             self.gradient[self.n_soft..].fill(0.0);
             let n_soft = self.n_soft;
@@ -603,7 +617,11 @@ impl NewtonSolver {
         }
         let mut residual = self.gradient(p, x, contact.as_deref().map(|c| (c, &c.q[..])));
         let load: Real = p.load.iter().map(|f| f.norm_squared()).sum::<Real>().sqrt();
-        let target = params.tolerance * residual.max(load).max(1e-12);
+        // The force scale: the first residual, the load, and the elastic forces on the free
+        // vertices, which at equilibrium balance the load and the contact forces (a body held
+        // pressed by an obstacle starts a step nearly balanced, with a tiny first residual,
+        // under kilonewtons of contact force).
+        let target = params.tolerance * residual.max(load).max(self.elastic_force).max(1e-12);
         report.residuals.push(residual);
         report.potentials.push(phi);
         // Positions are absolute coordinates, so forces carry a round-off floor of about

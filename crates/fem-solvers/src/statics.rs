@@ -37,7 +37,7 @@ use fem_core::math::{Real, Vec2};
 use crate::barrier_contact::BarrierContact;
 use crate::bc::Motion;
 use crate::commit::{Kinematic, StepEnd};
-use crate::contact::{BodyState, Contact, ObstacleMotion};
+use crate::contact::{BodyState, Contact};
 use crate::error::{SolverError, check_at_most, check_count};
 use crate::implicit::external_load;
 use crate::limits;
@@ -136,11 +136,15 @@ impl StaticStepper {
     pub fn new<E: Energy>(model: &Model<E>, params: StaticParams) -> Result<Self, SolverError> {
         params.validate()?;
         for (o, obs) in model.obstacles().iter().enumerate() {
-            if let ObstacleMotion::Kinematic { end, .. } = obs.motion()
+            if let Some((_, end)) = obs.schedule()
                 && !end.is_finite()
             {
+                let field = match obs.moves().len() {
+                    0 => format!("obstacles[{o}].end"),
+                    n => format!("obstacles[{o}].moves[{}].end", n - 1),
+                };
                 return Err(SolverError::invalid(
-                    format!("obstacles[{o}].end"),
+                    field,
                     end,
                     "must be finite for the static solver (the load factor scales the whole motion velocity * (end - start))",
                 ));
@@ -348,12 +352,9 @@ impl Stepper for StaticStepper {
                 // they are.
                 self.targets.clear();
                 for (obs, body) in model.obstacles().iter().zip(&state.bodies) {
-                    let target = match obs.motion() {
-                        ObstacleMotion::Kinematic { start, end, .. } => {
-                            obs.scheduled_pose(start + next * (end - start))
-                        }
-                        _ => None,
-                    };
+                    let target = obs
+                        .schedule()
+                        .and_then(|(start, end)| obs.scheduled_pose(start + next * (end - start)));
                     self.targets.push(target.unwrap_or([
                         body.position.x,
                         body.position.y,

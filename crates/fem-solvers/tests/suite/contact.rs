@@ -217,6 +217,134 @@ fn kinematic_obstacle_pushes_the_body_and_static_obstacle_holds_it() {
     );
 }
 
+/// A kinematic plate with a second move: lowered 10 cm during [0, 0.5] s (5 cm into the strip
+/// of the test above), held, then lifted 10 cm during [0.6, 1.1] s. Mid-way it presses the strip
+/// as the one-window plate does; at the end it is back at its initial pose (the two moves cancel
+/// to round-off) and no longer touches the strip. Pressed means the strip's top below 0.48 m, 2
+/// of the 5 cm: explicit's default penalty lets the plate sink 2.6 cm into the strip, XPBD's
+/// projection holds it to round-off. (Implicit Euler's barrier places a kinematic obstacle by
+/// the same schedule; the lower-leg scene's tests run it.)
+#[test]
+fn a_kinematic_obstacle_with_a_second_move_presses_then_lets_go() {
+    use fem_solvers::ObstacleMove;
+    let model = || {
+        let mesh = rectangle(&RectangleParams::new(4.0, 0.5, 16, 4)).unwrap();
+        let mut m = Model::with_total_mass(mesh, NeoHookean::new(lame(1e4)).unwrap(), 1.0).unwrap();
+        m.pin(&Region::in_box(Vec2::new(0.0, 0.0), Vec2::new(4.0, 0.0)))
+            .unwrap();
+        let plate = [
+            Vec2::new(1.0, 0.55),
+            Vec2::new(3.0, 0.55),
+            Vec2::new(3.0, 0.75),
+            Vec2::new(1.0, 0.75),
+        ];
+        let down = ObstacleMotion::Kinematic {
+            velocity: Vec2::new(0.0, -0.2),
+            angular_velocity: 0.0,
+            start: 0.0,
+            end: 0.5,
+        };
+        let k = m.add_obstacle(&plate, down).unwrap();
+        let up = ObstacleMove {
+            velocity: Vec2::new(0.0, 0.2),
+            angular_velocity: 0.0,
+            start: 0.6,
+            end: 1.1,
+        };
+        m.set_obstacle_moves(k, &[up]).unwrap();
+        assert_eq!(m.obstacles()[k].schedule(), Some((0.0, 1.1)));
+        (m, k)
+    };
+    let (m, k) = model();
+    let top_mid = fem_solvers::testing::node_index(8, 4, 16);
+    let check = |name: &str, stepper: &mut dyn FnMut(&mut State)| {
+        let mut state = State::at_rest(&m);
+        while state.t < 0.55 - 1e-9 {
+            stepper(&mut state);
+        }
+        let pressed = state.x[top_mid].y;
+        assert!(
+            (state.bodies[k].position.y - 0.55).abs() < 1e-9 && pressed < 0.48,
+            "{name}: plate at {}, strip top at {pressed} while pressed",
+            state.bodies[k].position.y
+        );
+        while state.t < 1.5 - 1e-9 {
+            stepper(&mut state);
+        }
+        let b = state.bodies[k];
+        assert!(
+            (b.position.y - 0.65).abs() < 1e-9 && b.velocity.norm() == 0.0,
+            "{name}: plate at {} moving {:?} after its moves",
+            b.position.y,
+            b.velocity
+        );
+        let highest = state.x.iter().map(|p| p.y).fold(Real::MIN, Real::max);
+        assert!(
+            highest < 0.55,
+            "{name}: strip reaches {highest} under the lifted plate"
+        );
+    };
+    let mut explicit = ExplicitStepper::new(
+        &m,
+        ExplicitParams {
+            dt: 1e-4,
+            damping: 5.0,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    check("explicit", &mut |s| {
+        explicit.step(&m, s).unwrap();
+    });
+    let mut xpbd = XpbdStepper::new(
+        &m,
+        XpbdParams {
+            iterations: 10,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    check("xpbd", &mut |s| {
+        xpbd.step(&m, s).unwrap();
+    });
+
+    // Moves are for kinematic obstacles only, in time order.
+    let (mut m, k) = model();
+    let late = |start: Real, end: Real| ObstacleMove {
+        velocity: Vec2::new(0.0, 1.0),
+        angular_velocity: 0.0,
+        start,
+        end,
+    };
+    let e = m
+        .set_obstacle_moves(k, &[late(0.4, 0.8)])
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("obstacles[0].moves[0].start") && e.contains("at or after the end"),
+        "{e}"
+    );
+    let e = m
+        .set_obstacle_moves(k, &[late(0.6, 0.5)])
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("obstacles[0].moves[0].end"), "{e}");
+    let e = m.set_obstacle_moves(3, &[]).unwrap_err().to_string();
+    assert!(e.contains("no such obstacle"), "{e}");
+    let square = [
+        Vec2::new(0.0, 2.0),
+        Vec2::new(1.0, 2.0),
+        Vec2::new(1.0, 3.0),
+        Vec2::new(0.0, 3.0),
+    ];
+    let s = m.add_obstacle(&square, ObstacleMotion::Static).unwrap();
+    let e = m
+        .set_obstacle_moves(s, &[late(1.0, 2.0)])
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("only a kinematic obstacle has moves"), "{e}");
+}
+
 /// Geometry at t = 0: a body below the ground, an obstacle over the body (a vertex inside it,
 /// or its corner inside a triangle) and a self-crossing polygon are errors naming what and
 /// where; a body resting exactly on the ground and an obstacle touching it are fine.
