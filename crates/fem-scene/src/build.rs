@@ -18,8 +18,8 @@ use fem_mesh::camera::{Camera, Projection};
 use fem_mesh::pipeline::{PipelineParams, mesh_surface};
 use fem_mesh::triangulate::TriangulateParams;
 use fem_solvers::{
-    AnyStepper, Clock, ContactParams, Ground, Model, ObstacleMotion, PrescribedMotion, Region,
-    SolverError, State,
+    AnyStepper, Clock, ContactParams, Ground, Model, ObstacleMotion, ObstacleMove,
+    PrescribedMotion, Region, SolverError, State,
 };
 
 use crate::error::SceneError;
@@ -515,7 +515,20 @@ fn build_unloaded_model<E: Energy>(
                 rotates: o.rotates.unwrap_or(true),
             },
         };
-        model.add_obstacle(&polygon, motion).map_err(&err)?;
+        let index = model.add_obstacle(&polygon, motion).map_err(&err)?;
+        if !o.moves.is_empty() {
+            let moves: Vec<ObstacleMove> = o
+                .moves
+                .iter()
+                .map(|m| ObstacleMove {
+                    velocity: v2(m.velocity),
+                    angular_velocity: m.angular_velocity.unwrap_or(0.0),
+                    start: m.start,
+                    end: m.end.unwrap_or(Real::INFINITY),
+                })
+                .collect();
+            model.set_obstacle_moves(index, &moves).map_err(&err)?;
+        }
     }
     if let Some(c) = &s.contact {
         let d = ContactParams::default();

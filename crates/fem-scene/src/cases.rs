@@ -1,4 +1,4 @@
-//! The built-in cases A-D: their scene files (`crates/fem-scene/cases/`, linked from
+//! The built-in cases A-D and case D's lower-leg close-up: their scene files (`crates/fem-scene/cases/`, linked from
 //! `fixtures/scenes/`) compiled in, so `fem2d run case-a` works from any directory, a browser
 //! needs no file, and the published crate carries them.
 
@@ -8,11 +8,12 @@ use crate::error::SceneError;
 use crate::scene::{LoadedScene, parse_scene};
 
 /// The built-in case names and their scene files' text.
-pub const CASES: [(&str, &str); 4] = [
+pub const CASES: [(&str, &str); 5] = [
     ("case-a", include_str!("../cases/case-a.toml")),
     ("case-b", include_str!("../cases/case-b.toml")),
     ("case-c", include_str!("../cases/case-c.toml")),
     ("case-d", include_str!("../cases/case-d.toml")),
+    ("lower-leg", include_str!("../cases/lower-leg.toml")),
 ];
 
 /// The text of built-in case `name`.

@@ -6,7 +6,7 @@
 //!   gravity, obstacles, probes, output cadence), `--set key=value` overrides, and the
 //!   scene-level validation (the solver's own parameters are checked by their own `validate`,
 //!   in `fem-solvers`);
-//! - [`cases`]: the built-in cases A-D (the files of `fixtures/scenes/`, compiled in);
+//! - [`cases`]: the built-in cases A-D and `lower-leg` (the files of `fixtures/scenes/`, compiled in);
 //! - [`build`]: from a scene to a mesh (rectangle, mesh JSON, 3D model or the built-in body
 //!   through `fem-mesh`), a [`fem_solvers::Model`], the probes and the stepper (any solver of
 //!   the registry, [`fem_solvers::SolverKind`]);

@@ -363,6 +363,23 @@ pub struct ObstacleSpec {
     pub start: Option<f64>,
     /// Kinematic: window end, s. Default: never stops.
     pub end: Option<f64>,
+    /// Kinematic: further moves after the window, in time order (`[[obstacles.moves]]`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub moves: Vec<ObstacleMoveSpec>,
+}
+
+/// One more move of a kinematic obstacle, `[[obstacles.moves]]`: a velocity during `[start, end]`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ObstacleMoveSpec {
+    /// Velocity of the centroid, m/s.
+    pub velocity: [f64; 2],
+    /// Angular velocity, rad/s. Default 0.
+    pub angular_velocity: Option<f64>,
+    /// Window start, s: at or after the end of the window before.
+    pub start: f64,
+    /// Window end, s. Default: never stops (the last move only).
+    pub end: Option<f64>,
 }
 
 /// The `[contact]` table.
@@ -829,6 +846,7 @@ impl LoadedScene {
                     unexpected("angular_velocity", o.angular_velocity.is_some())?;
                     unexpected("start", o.start.is_some())?;
                     unexpected("end", o.end.is_some())?;
+                    unexpected("moves", !o.moves.is_empty())?;
                 }
                 MotionName::Dynamic => {
                     let mass = o.mass.ok_or_else(|| {
@@ -843,6 +861,7 @@ impl LoadedScene {
                     unexpected("angular_velocity", o.angular_velocity.is_some())?;
                     unexpected("start", o.start.is_some())?;
                     unexpected("end", o.end.is_some())?;
+                    unexpected("moves", !o.moves.is_empty())?;
                 }
                 MotionName::Kinematic => {
                     unexpected("mass", o.mass.is_some())?;
@@ -865,6 +884,34 @@ impl LoadedScene {
                         && (end.is_nan() || end < start)
                     {
                         return Err(self.error(&format!("{f}.end"), end, "must be >= start (s)"));
+                    }
+                    let mut previous = (format!("{f}.end"), o.end.unwrap_or(f64::INFINITY));
+                    for (k, m) in o.moves.iter().enumerate() {
+                        let g = format!("{f}.moves.{k}");
+                        point(&format!("{g}.velocity"), m.velocity)?;
+                        finite(
+                            &format!("{g}.angular_velocity"),
+                            m.angular_velocity.unwrap_or(0.0),
+                        )?;
+                        if m.start.is_nan() || m.start < previous.1 {
+                            return Err(self.error(
+                                &format!("{g}.start"),
+                                m.start,
+                                &format!(
+                                    "must be at or after {} = {} s (moves follow each other in time)",
+                                    previous.0, previous.1
+                                ),
+                            ));
+                        }
+                        let end = m.end.unwrap_or(f64::INFINITY);
+                        if end.is_nan() || end < m.start {
+                            return Err(self.error(
+                                &format!("{g}.end"),
+                                end,
+                                "must be >= start (s)",
+                            ));
+                        }
+                        previous = (format!("{g}.end"), end);
                     }
                 }
             }

@@ -77,7 +77,7 @@ fn fixtures() -> PathBuf {
 #[test]
 fn every_builtin_case_parses_and_matches_its_fixture_file() {
     let names: Vec<&str> = CASES.iter().map(|(n, _)| *n).collect();
-    assert_eq!(names, ["case-a", "case-b", "case-c", "case-d"]);
+    assert_eq!(names, ["case-a", "case-b", "case-c", "case-d", "lower-leg"]);
     for (name, _) in CASES {
         let builtin = load_case(name, &[]).unwrap_or_else(|e| panic!("{name}: {e}"));
         assert_eq!(builtin.scene.name, name);
