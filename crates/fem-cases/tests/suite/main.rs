@@ -5,3 +5,4 @@ mod budget;
 mod cases;
 mod goldens;
 mod scene;
+mod vtk;
