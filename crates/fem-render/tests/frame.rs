@@ -763,9 +763,12 @@ fn write_sample_picture() {
 
 const IVORY: [u8; 3] = [232, 224, 200];
 
+/// Positions, triangles, a tag per triangle and a per-element field.
+type TaggedMesh = (Vec<[f64; 2]>, Vec<[usize; 3]>, Vec<u32>, Vec<f64>);
+
 /// A 10 x 4 grid whose right half (centroid x > 1) is "bone" (tag 1), with a per-element field
 /// of 1 kPa-ish in the soft half and a thousand times more in the bone.
-fn two_tissues() -> (Vec<[f64; 2]>, Vec<[usize; 3]>, Vec<u32>, Vec<f64>) {
+fn two_tissues() -> TaggedMesh {
     let (pos, tris) = grid(10, 4, 2.0, 0.8, 0.0);
     let tags: Vec<u32> = tris
         .iter()
