@@ -7,21 +7,25 @@
 //!   at Table 1's frames 50, 120 and 200;
 //! - Figure 3: case B, the stretched bar under the three energies (lateral contraction);
 //! - Figure 4: case C, explicit FEM, PBD and XPBD side by side at explicit's deepest deflection;
-//! - Figure 5: case D, the scene (body, ground, debris) and the von Mises map at peak stress.
+//! - Figure 5: case D, the scene (body, skeleton, ground, debris), the soft tissue's von Mises
+//!   map at its peak and at rest (bone drawn flat and outlined, so its stress, a thousand times
+//!   the soft tissue's, does not swamp the scale), and the contact pressure against x on the
+//!   debris and on the ground at both frames.
 
 use std::path::Path;
 use std::time::Instant;
 
 use fem_core::energy::EnergyKind;
 use fem_render::Image;
-use fem_render::chart::{GridCell, GridChart};
+use fem_render::chart::{GridCell, GridChart, LineChart, Series};
+use fem_render::frame::{region_edges, render};
 
 use crate::compare::{CompareSpec, Comparison, compare};
 use crate::pictures::{
-    FieldKind, FramePicture, GifOptions, probe_chart, render_side_by_side, snapshot_at,
-    write_chart, write_gif,
+    FieldKind, FramePicture, GifOptions, overlay_pressure, pressure_range, probe_chart,
+    render_side_by_side, snapshot_at, style, write_chart, write_gif,
 };
-use crate::run::RunResult;
+use crate::run::{RunResult, Snapshot};
 use crate::sweep::{Merged, parse_sweep};
 use fem_scene::SceneError;
 use fem_scene::cases::load_case;
@@ -360,56 +364,13 @@ pub fn write_figures(runs_: &CaseRuns, dir: &Path) -> Result<Vec<Figure>, SceneE
         ),
     });
 
-    // Figure 5: case D's scene and the von Mises map at peak stress.
+    // Figure 5: case D's scene, the soft tissue's von Mises map at its peak and at rest, and
+    // the contact pressure along the body.
     let d = runs(&runs_.d);
     let (_, drun) = d
         .first()
         .ok_or_else(|| SceneError::Io("case D did not run".into()))?;
-    let s = &drun.summary;
-    let first = drun.snapshots.first().expect("a run keeps its first frame");
-    let peak = drun
-        .snapshots
-        .iter()
-        .find(|x| x.step == s.max_von_mises_step)
-        .unwrap_or_else(|| drun.snapshots.last().expect("a run keeps its last frame"));
-    let ground = ground_height("case-d")?;
-    let scene_pic = FramePicture::new(drun, first, FieldKind::VonMises, "(a) the scene at t = 0")
-        .plain()
-        .with_ground(ground);
-    let peak_pic = FramePicture::new(
-        drun,
-        peak,
-        FieldKind::VonMises,
-        &format!(
-            "(b) von Mises stress and contact pressure at peak, t = {:.2} s",
-            peak.time
-        ),
-    )
-    .with_ground(ground)
-    .with_contact_pressure();
-    let top = render_side_by_side(
-        &[&scene_pic],
-        FieldKind::VonMises,
-        "Figure 5. Case D: debris falling on a lying body",
-        (900, 260),
-        None,
-    )?
-    .image;
-    let bottom = render_side_by_side(&[&peak_pic], FieldKind::VonMises, "", (900, 260), None)?;
-    let fig5 = Image::vstack(&[top, bottom.image], 6, [255, 255, 255, 255]);
-    write_png(&fig5, dir, "figure-5-case-d.png")?;
-    figures.push(Figure {
-        file: "figure-5-case-d.png".into(),
-        title: "Figure 5: case D, the body under debris".into(),
-        caption: format!(
-            "A {} kg slab falls on the shin of the body lying on the ground ({} triangles). Peak von Mises stress {:.0} kPa at x = {:.3} m, at t = {:.2} s.",
-            fmt_mass(&load_case("case-d", &[])?),
-            s.triangles,
-            s.max_von_mises * 1e-3,
-            s.max_von_mises_at[0],
-            peak.time
-        ),
-    });
+    figures.push(figure_5(drun, dir)?);
 
     // Probe curves.
     for (comparison, stem, title, what) in [
@@ -450,6 +411,414 @@ pub fn write_figures(runs_: &CaseRuns, dir: &Path) -> Result<Vec<Figure>, SceneE
         });
     }
     Ok(figures)
+}
+
+/// The flat colour of bone in the stress maps: a light ivory, apart from every colour of
+/// viridis.
+pub const BONE_COLOR: [u8; 3] = [236, 228, 204];
+
+/// The elements a stress map draws flat (material region other than the base, 0) and the
+/// outlines of those regions: the edges between elements of different mesh regions (the
+/// mesh's own tissues when it carries them, else the material regions) and the flat
+/// elements' edges on the body's boundary.
+pub fn flat_regions(run: &RunResult) -> (Vec<bool>, Vec<[usize; 2]>) {
+    let flat: Vec<bool> = run.region_tags.iter().map(|&t| t != 0).collect();
+    let triangles: Vec<[usize; 3]> = run
+        .triangles
+        .iter()
+        .map(|t| t.map(|i| i as usize))
+        .collect();
+    let tags = if run.mesh_regions.0.len() == triangles.len() {
+        &run.mesh_regions.0
+    } else {
+        &run.region_tags
+    };
+    // A tag is outlined on the boundary when its elements are drawn flat.
+    let mut outlined = vec![false; tags.iter().max().map_or(0, |&t| t as usize + 1)];
+    for (&t, &f) in tags.iter().zip(&flat) {
+        outlined[t as usize] |= f;
+    }
+    let edges = region_edges(&triangles, tags, |t| outlined[t as usize]);
+    (flat, edges)
+}
+
+/// The largest von Mises stress of the elements not drawn flat in `snapshot`, Pa, with its
+/// element; `None` when no such element has a finite stress.
+pub fn unmasked_peak(snapshot: &Snapshot, flat: &[bool]) -> Option<(f64, usize)> {
+    snapshot
+        .von_mises
+        .iter()
+        .zip(flat)
+        .enumerate()
+        .filter(|(_, (v, f))| !**f && v.is_finite())
+        .map(|(e, (&v, _))| (v, e))
+        .max_by(|a, b| a.0.total_cmp(&b.0))
+}
+
+/// What a run of loaded boundary edges touches.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Touching {
+    /// The horizontal ground.
+    Ground,
+    /// Obstacle `k` of the frame.
+    Obstacle(usize),
+}
+
+/// One contact patch of a frame: consecutive boundary edges with a positive pressure at
+/// either end, walked along the boundary (its two end vertices are the first unloaded ones,
+/// so a line through its points is the piecewise-linear pressure of
+/// `fem_solvers::pressure`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct PressurePatch {
+    /// Closest to the loaded vertices on average: the ground or an obstacle.
+    pub touching: Touching,
+    /// The patch's vertices in boundary order: `(vertex, position (m), pressure (Pa))`.
+    pub points: Vec<(usize, [f64; 2], f64)>,
+}
+
+/// The contact patches of `snapshot` of `run`, in the order of the boundary, each with what it
+/// touches: the ground at height `ground` (when given) or the nearest obstacle of the
+/// snapshot. A non-finite pressure counts as unloaded.
+pub fn contact_patches(
+    run: &RunResult,
+    snapshot: &Snapshot,
+    ground: Option<f64>,
+) -> Vec<PressurePatch> {
+    let p = &snapshot.contact_pressure;
+    let x = &snapshot.positions;
+    if p.len() != x.len() {
+        return Vec::new();
+    }
+    let loaded = |v: usize| p[v].is_finite() && p[v] > 0.0;
+    // Boundary edges (used by one triangle), oriented as in it; next[a] = b.
+    let mut edges: Vec<([u32; 2], [u32; 2])> = run
+        .triangles
+        .iter()
+        .flat_map(|t| (0..3).map(move |k| (t[k], t[(k + 1) % 3])))
+        .map(|(a, b)| ([a.min(b), a.max(b)], [a, b]))
+        .collect();
+    edges.sort_unstable();
+    let mut next = vec![u32::MAX; x.len()];
+    let mut i = 0;
+    while i < edges.len() {
+        let j = i + edges[i..].iter().take_while(|e| e.0 == edges[i].0).count();
+        if j - i == 1 {
+            let [a, b] = edges[i].1;
+            next[a as usize] = b;
+        }
+        i = j;
+    }
+    // Walk each boundary loop from an unloaded edge, cutting it into runs of loaded edges.
+    let mut seen = vec![false; x.len()];
+    let mut patches = Vec::new();
+    for start in 0..x.len() {
+        if next[start] == u32::MAX || seen[start] {
+            continue;
+        }
+        let mut cycle = vec![start];
+        seen[start] = true;
+        let mut v = next[start] as usize;
+        while v != start && next[v] != u32::MAX && !seen[v] {
+            seen[v] = true;
+            cycle.push(v);
+            v = next[v] as usize;
+        }
+        let n = cycle.len();
+        let edge_loaded = |k: usize| loaded(cycle[k % n]) || loaded(cycle[(k + 1) % n]);
+        let Some(first) = (0..n).find(|&k| !edge_loaded(k)) else {
+            // The whole loop is loaded: one closed patch.
+            patches.push(cycle.clone());
+            continue;
+        };
+        let mut current: Vec<usize> = Vec::new();
+        for k in first + 1..=first + n {
+            if edge_loaded(k) {
+                if current.is_empty() {
+                    current.push(cycle[k % n]);
+                }
+                current.push(cycle[(k + 1) % n]);
+            } else if !current.is_empty() {
+                patches.push(std::mem::take(&mut current));
+            }
+        }
+    }
+    patches
+        .into_iter()
+        .map(|vs| {
+            let touching = nearest_contact(
+                vs.iter().filter(|&&v| loaded(v)).map(|&v| x[v]),
+                ground,
+                &snapshot.obstacles,
+            );
+            PressurePatch {
+                touching,
+                points: vs.iter().map(|&v| (v, x[v], p[v])).collect(),
+            }
+        })
+        .collect()
+}
+
+/// The ground or the obstacle closest on average to `points`.
+fn nearest_contact(
+    points: impl Iterator<Item = [f64; 2]>,
+    ground: Option<f64>,
+    obstacles: &[Vec<[f64; 2]>],
+) -> Touching {
+    let mut sums = vec![0.0; obstacles.len() + 1];
+    for q in points {
+        sums[0] += ground.map_or(f64::INFINITY, |g| (q[1] - g).abs());
+        for (k, poly) in obstacles.iter().enumerate() {
+            let d = (0..poly.len())
+                .map(|i| {
+                    let (a, b) = (poly[i], poly[(i + 1) % poly.len()]);
+                    fem_mesh::quality::segment_distance(q, a, b)
+                })
+                .fold(f64::INFINITY, f64::min);
+            sums[k + 1] += d;
+        }
+    }
+    let best = (0..sums.len())
+        .min_by(|&a, &b| sums[a].total_cmp(&sums[b]))
+        .unwrap_or(0);
+    if best == 0 && ground.is_some() {
+        Touching::Ground
+    } else {
+        Touching::Obstacle(best.saturating_sub(1))
+    }
+}
+
+/// The series of one kind of contact of a frame: pressure (kPa) against x (m), the patches
+/// one after another, a NaN point between two so the line breaks there.
+fn pressure_series(patches: &[PressurePatch], on_ground: bool, label: String) -> Series {
+    let mut points = Vec::new();
+    for patch in patches
+        .iter()
+        .filter(|p| (p.touching == Touching::Ground) == on_ground)
+    {
+        if !points.is_empty() {
+            points.push((f64::NAN, f64::NAN));
+        }
+        points.extend(patch.points.iter().map(|(_, q, pa)| (q[0], pa * 1e-3)));
+    }
+    Series { label, points }
+}
+
+/// The largest pressure of the patches touching the ground (`on_ground`) or an obstacle, Pa,
+/// and its x, m.
+fn patch_peak(patches: &[PressurePatch], on_ground: bool) -> Option<(f64, f64)> {
+    patches
+        .iter()
+        .filter(|p| (p.touching == Touching::Ground) == on_ground)
+        .flat_map(|p| p.points.iter())
+        .filter(|(_, _, pa)| pa.is_finite())
+        .map(|(_, q, pa)| (*pa, q[0]))
+        .max_by(|a, b| a.0.total_cmp(&b.0))
+}
+
+/// The chart of the contact pressure against x on the obstacles and on the ground, at each
+/// `(name, snapshot)` (e.g. peak and rest); `width` pixels wide.
+pub fn contact_pressure_chart(
+    run: &RunResult,
+    frames: &[(&str, &Snapshot)],
+    ground: Option<f64>,
+    title: &str,
+    width: u32,
+) -> LineChart {
+    let mut series = Vec::new();
+    for on_ground in [false, true] {
+        for (name, snap) in frames {
+            let patches = contact_patches(run, snap, ground);
+            let what = if on_ground { "ground" } else { "debris" };
+            let s = pressure_series(
+                &patches,
+                on_ground,
+                format!("{what}, {name} (t = {:.2} s)", snap.time),
+            );
+            if !s.points.is_empty() {
+                series.push(s);
+            }
+        }
+    }
+    LineChart {
+        title: title.to_owned(),
+        x_label: "x along the body, head at 0 [m]".into(),
+        y_label: "contact pressure [kPa]".into(),
+        series,
+        markers: true,
+        width,
+        height: 380,
+        ..LineChart::default()
+    }
+}
+
+/// Figure 5 from case D's run into `dir`.
+fn figure_5(run: &RunResult, dir: &Path) -> Result<Figure, SceneError> {
+    let scene = load_case("case-d", &[])?;
+    let ground = ground_height("case-d")?;
+    let s = &run.summary;
+    let first = run.snapshots.first().expect("a run keeps its first frame");
+    let rest = run.snapshots.last().expect("a run keeps its last frame");
+    let (flat, edges) = flat_regions(run);
+    // The soft tissue's peak frame (the whole body's peak is in the bone).
+    let peak = run
+        .snapshots
+        .iter()
+        .filter_map(|x| unmasked_peak(x, &flat).map(|p| (p, x)))
+        .max_by(|a, b| a.0.0.total_cmp(&b.0.0))
+        .map_or(rest, |(_, x)| x);
+    let (soft_peak, soft_element) = unmasked_peak(peak, &flat).unwrap_or((0.0, 0));
+    let soft_rest = unmasked_peak(rest, &flat).map_or(0.0, |p| p.0);
+    let range = (0.0, (soft_peak.max(soft_rest) * 1e-3).max(1e-9));
+    let flat_label = s
+        .regions
+        .iter()
+        .skip(1)
+        .map(|r| r.name.as_str())
+        .collect::<Vec<_>>()
+        .join(", ");
+    fn with_bones<'a>(
+        p: FramePicture<'a>,
+        ground: Option<f64>,
+        (flat, edges, label): (&[bool], &[[usize; 2]], &str),
+    ) -> FramePicture<'a> {
+        p.with_ground(ground)
+            .with_flat_elements(flat.to_vec(), BONE_COLOR, label)
+            .with_outline_edges(edges.to_vec())
+    }
+    let bones = (flat.as_slice(), edges.as_slice(), flat_label.as_str());
+    let decorate = |p| with_bones(p, ground, bones);
+    let panel = (900, 250);
+    let scene_pic = decorate(FramePicture::new(
+        run,
+        first,
+        FieldKind::VonMises,
+        "(a) the scene at t = 0: soft tissue (blue), bones (ivory, outlined), debris, ground",
+    ))
+    .plain();
+    let maps = [
+        (peak, "(b) at the soft tissue's peak"),
+        (rest, "(c) at rest"),
+    ];
+    let pictures: Vec<FramePicture<'_>> = maps
+        .iter()
+        .map(|(snap, what)| {
+            decorate(FramePicture::new(
+                run,
+                snap,
+                FieldKind::VonMises,
+                &format!(
+                    "{what}, t = {:.2} s: von Mises stress of the soft tissue, contact pressure",
+                    snap.time
+                ),
+            ))
+            .with_contact_pressure()
+        })
+        .collect();
+    let refs: Vec<&FramePicture<'_>> = pictures.iter().chain([&scene_pic]).collect();
+    let bounds = refs.iter().map(|p| p.bounds()).reduce(|a, b| {
+        (
+            [a.0[0].min(b.0[0]), a.0[1].min(b.0[1])],
+            [a.1[0].max(b.1[0]), a.1[1].max(b.1[1])],
+        )
+    });
+    let pressure = pressure_range(&refs);
+    let draw = |p: &FramePicture<'_>, title: &str| -> Result<Image, SceneError> {
+        let mut st = style(FieldKind::VonMises, title, panel.0, panel.1);
+        st.range = Some(range);
+        st.bounds = bounds;
+        let mut r = render(&[p.view()], &st)
+            .map_err(|e| SceneError::Io(format!("rendering figure 5: {e}")))?;
+        if pressure.is_some() {
+            overlay_pressure(&mut r, &[p], pressure)?;
+        }
+        Ok(r.image)
+    };
+    let mut rows = vec![draw(
+        &scene_pic,
+        "Figure 5. Case D: debris falling on the shin of a body lying on the ground",
+    )?];
+    for p in &pictures {
+        rows.push(draw(p, "")?);
+    }
+    let width = rows.iter().map(Image::width).max().unwrap_or(900);
+    let chart = contact_pressure_chart(
+        run,
+        &[("peak", peak), ("rest", rest)],
+        ground,
+        "(d) contact pressure along the body on the debris and on the ground",
+        width,
+    );
+    rows.push(chart.to_png().map_err(render_err)?);
+    let fig5 = Image::vstack(&rows, 6, [255, 255, 255, 255]);
+    write_png(&fig5, dir, "figure-5-case-d.png")?;
+
+    // The caption's numbers.
+    let peak_tri = run.triangles[soft_element].map(|i| peak.positions[i as usize]);
+    let at = [
+        peak_tri.iter().map(|q| q[0]).sum::<f64>() / 3.0,
+        peak_tri.iter().map(|q| q[1]).sum::<f64>() / 3.0,
+    ];
+    let near = nearest_flat_region(run, peak, &flat, at)
+        .map_or_else(String::new, |name| format!(", next to the {name}"));
+    let contacts = |snap: &Snapshot| {
+        let patches = contact_patches(run, snap, ground);
+        let say = |on_ground: bool, what: &str| {
+            patch_peak(&patches, on_ground).map_or_else(
+                || format!("no contact with the {what}"),
+                |(pa, x)| format!("{:.0} kPa on the {what} at x = {x:.2} m", pa * 1e-3),
+            )
+        };
+        format!("{}, {}", say(false, "debris"), say(true, "ground"))
+    };
+    Ok(Figure {
+        file: "figure-5-case-d.png".into(),
+        title: "Figure 5: case D, the body under debris".into(),
+        caption: format!(
+            "A {} kg slab falls on the shin of the body lying on the ground ({} triangles, {} of them {flat_label}). The von Mises colour scale spans the soft tissue only, 0 to {:.1} kPa over the two frames shown; {flat_label} is drawn flat and outlined (its own peak, {:.0} kPa, would swamp the scale). The soft tissue's peak, {:.1} kPa at t = {:.2} s, is at x = {:.3} m, y = {:.3} m{near}; at rest (t = {:.2} s) its largest stress is {:.1} kPa. Peak contact pressure at t = {:.2} s: {}; at rest: {}.",
+            fmt_mass(&scene),
+            s.triangles,
+            flat.iter().filter(|&&f| f).count(),
+            range.1,
+            s.max_von_mises * 1e-3,
+            soft_peak * 1e-3,
+            peak.time,
+            at[0],
+            at[1],
+            rest.time,
+            soft_rest * 1e-3,
+            peak.time,
+            contacts(peak),
+            contacts(rest),
+        ),
+    })
+}
+
+/// The mesh region name of the flat element whose centroid in `snapshot` is closest to `at`.
+fn nearest_flat_region(
+    run: &RunResult,
+    snapshot: &Snapshot,
+    flat: &[bool],
+    at: [f64; 2],
+) -> Option<String> {
+    let (tags, names) = &run.mesh_regions;
+    let centroid = |t: &[u32; 3]| {
+        let q = t.map(|i| snapshot.positions[i as usize]);
+        [
+            (q[0][0] + q[1][0] + q[2][0]) / 3.0,
+            (q[0][1] + q[1][1] + q[2][1]) / 3.0,
+        ]
+    };
+    let (e, _) = run
+        .triangles
+        .iter()
+        .enumerate()
+        .filter(|(e, _)| flat[*e])
+        .map(|(e, t)| {
+            let c = centroid(t);
+            (e, (c[0] - at[0]).hypot(c[1] - at[1]))
+        })
+        .min_by(|a, b| a.1.total_cmp(&b.1))?;
+    names.get(*tags.get(e)? as usize).cloned()
 }
 
 /// "label N mm, ..." of each row's deepest deflection of its first probe.

@@ -12,7 +12,7 @@ use std::str::FromStr;
 use fem_render::Image;
 use fem_render::chart::{LineChart, Scale, Series};
 use fem_render::colormap::Colormap;
-use fem_render::frame::{FieldValues, FrameStyle, MeshView, Rendered, render};
+use fem_render::frame::{FieldValues, FlatElements, FrameStyle, MeshView, Rendered, render};
 use fem_render::pressure::{PressureOverlay, draw_pressure};
 
 use crate::run::{RunResult, Snapshot};
@@ -80,6 +80,11 @@ pub struct FramePicture<'a> {
     show_pressure: bool,
     /// Whether the run had any contact pressure.
     run_has_pressure: bool,
+    /// Triangles drawn flat instead of by the field ([`FramePicture::with_flat_elements`]):
+    /// mask, colour and legend label.
+    flat: Option<(Vec<bool>, [u8; 3], String)>,
+    /// Edges drawn as thin dark lines ([`FramePicture::with_outline_edges`]).
+    outline_edges: Vec<[usize; 2]>,
     /// Caption drawn above the panel.
     pub caption: String,
     /// Time of the frame, s.
@@ -123,6 +128,8 @@ impl<'a> FramePicture<'a> {
             snapshot_pressure: &snapshot.contact_pressure,
             show_pressure: false,
             run_has_pressure: run.summary.contact_peak_pressure > 0.0,
+            flat: None,
+            outline_edges: Vec::new(),
             caption: caption.to_owned(),
             time: snapshot.time,
         }
@@ -148,6 +155,27 @@ impl<'a> FramePicture<'a> {
             && self.run_has_pressure
             && self.snapshot_pressure.len() == self.positions.len())
         .then_some(self.snapshot_pressure)
+    }
+
+    /// The picture with the triangles of `mask` (one entry per triangle) drawn in the flat
+    /// `color` instead of by the field, and left out of its colour range ([`Self::range`],
+    /// hence [`shared_range`]); a non-empty `label` gets a legend row under the colorbar. For
+    /// bone inside soft tissue: the soft tissue's stress keeps the whole scale.
+    pub fn with_flat_elements(mut self, mask: Vec<bool>, color: [u8; 3], label: &str) -> Self {
+        self.flat = Some((mask, color, label.to_owned()));
+        self
+    }
+
+    /// The picture with `edges` (vertex index pairs) drawn as thin dark lines over the fill,
+    /// e.g. the bones' outlines (`fem_render::frame::region_edges`).
+    pub fn with_outline_edges(mut self, edges: Vec<[usize; 2]>) -> Self {
+        self.outline_edges = edges;
+        self
+    }
+
+    /// The picture's triangles as vertex index triples.
+    pub fn triangles(&self) -> &[[usize; 3]] {
+        &self.triangles
     }
 
     /// Adds a horizontal ground at height `y` (m), drawn as a thin strip under the body (the
@@ -180,6 +208,12 @@ impl<'a> FramePicture<'a> {
             rest_positions: Some(self.rest),
             obstacles: &self.obstacles,
             caption: &self.caption,
+            flat: self.flat.as_ref().map(|(mask, color, label)| FlatElements {
+                mask,
+                color: *color,
+                label,
+            }),
+            outline_edges: &self.outline_edges,
         }
     }
 
@@ -201,9 +235,34 @@ impl<'a> FramePicture<'a> {
         (lo, hi)
     }
 
-    /// The finite range of the field, in the field's own units.
+    /// The finite range of the field, in the field's own units, over the triangles drawn by
+    /// it (flat ones do not count; a per-vertex value counts when a triangle drawn by the
+    /// field uses its vertex).
     pub fn range(&self) -> Option<(f64, f64)> {
-        finite_range(self.values.iter().copied())
+        let Some((mask, _, _)) = &self.flat else {
+            return finite_range(self.values.iter().copied());
+        };
+        if self.per_vertex {
+            let mut shown = vec![false; self.values.len()];
+            for (t, _) in self.triangles.iter().zip(mask).filter(|(_, m)| !**m) {
+                t.iter().for_each(|&i| shown[i] = true);
+            }
+            finite_range(
+                self.values
+                    .iter()
+                    .zip(&shown)
+                    .filter(|(_, s)| **s)
+                    .map(|(v, _)| *v),
+            )
+        } else {
+            finite_range(
+                self.values
+                    .iter()
+                    .zip(mask)
+                    .filter(|(_, m)| !**m)
+                    .map(|(v, _)| *v),
+            )
+        }
     }
 }
 

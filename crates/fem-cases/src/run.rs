@@ -18,7 +18,10 @@
 //!   so the copy runs from the output directory);
 //! - with [`RunOptions::vtk`], `vtk/run.pvd` and one `vtk/run_NNNNNN.vtu` per frame (point
 //!   data `displacement`, `velocity`, `contact_pressure` in Pa; cell data `von_mises`,
-//!   `det_F`).
+//!   `det_F`; for a body with `[[regions]]` the integer cell data `region`, the material
+//!   region of each element, with the regions' names in the field data `region_names`; for a
+//!   mesh that carries regions (the built-in body's bones) `mesh_region` and
+//!   `mesh_region_names` likewise; a homogeneous body's files have none of them).
 //!
 //! The summary is written last: its presence says the other files are complete.
 
@@ -137,7 +140,7 @@ fn run_in_pool(
             frames = Some(FramesJsonl::create(dir, planned)?);
         }
         if options.vtk {
-            vtk = Some(VtkSink::create(dir)?);
+            vtk = Some(VtkSink::create(dir, scene)?);
         }
     }
     let mut sinks: Vec<&mut dyn FrameSink> = Vec::new();
@@ -311,8 +314,14 @@ impl FrameSink for FramesJsonl {
 }
 
 /// The recorded frames as VTK: `vtk/run.pvd` and one `vtk/run_NNNNNN.vtu` per frame.
-struct VtkSink {
+struct VtkSink<'s> {
+    scene: &'s LoadedScene,
     writer: fem_render::vtk::PvdWriter,
+    /// The material region of each element and the regions' names, when the scene has
+    /// `[[regions]]` (set on the first frame, from its mesh, as the run sets them).
+    region: Option<(Vec<u32>, Vec<String>)>,
+    /// The mesh's own region of each element and their names, when it carries regions.
+    mesh_region: Option<(Vec<u32>, Vec<String>)>,
     triangles: Vec<[usize; 3]>,
     displacement: Vec<[f64; 2]>,
     velocity: Vec<[f64; 2]>,
@@ -322,8 +331,8 @@ struct VtkSink {
     pressure: Vec<f64>,
 }
 
-impl VtkSink {
-    fn create(dir: &Path) -> Result<Self, SceneError> {
+impl<'s> VtkSink<'s> {
+    fn create(dir: &Path, scene: &'s LoadedScene) -> Result<Self, SceneError> {
         // Not recursive: fails rather than recreate a staging directory removed meanwhile.
         let vtk = dir.join("vtk");
         if let Err(e) = std::fs::create_dir(&vtk)
@@ -332,8 +341,11 @@ impl VtkSink {
             return Err(SceneError::Io(format!("{}: {e}", vtk.display())));
         }
         Ok(VtkSink {
+            scene,
             writer: fem_render::vtk::PvdWriter::new(&dir.join("vtk"), "run")
                 .map_err(|e| SceneError::Io(e.to_string()))?,
+            region: None,
+            mesh_region: None,
             triangles: Vec::new(),
             displacement: Vec::new(),
             velocity: Vec::new(),
@@ -352,13 +364,24 @@ impl VtkSink {
     }
 }
 
-impl FrameSink for VtkSink {
+impl FrameSink for VtkSink<'_> {
     fn frame(&mut self, f: &Frame<'_>) -> Result<(), SceneError> {
         use fem_render::vtk::{DataArray, VtkFrame};
         if self.triangles.is_empty() {
             // fem-render takes plain index triples.
             self.triangles
                 .extend(f.mesh.triangles().iter().map(|t| t.map(|i| i as usize)));
+            if !self.scene.scene.regions.is_empty() {
+                let r = fem_scene::build::material_regions(self.scene, f.mesh)?;
+                let names = r.materials.into_iter().map(|m| m.name).collect();
+                self.region = Some((r.tags, names));
+            }
+            if !f.mesh.region_tags().is_empty() {
+                self.mesh_region = Some((
+                    f.mesh.region_tags().to_vec(),
+                    f.mesh.region_names().to_vec(),
+                ));
+            }
         }
         self.displacement.clear();
         self.displacement.extend(
@@ -400,7 +423,7 @@ impl FrameSink for VtkSink {
                 .iter()
                 .map(|&p| if p.is_finite() { p } else { -1.0 }),
         );
-        let frame = VtkFrame {
+        let mut frame = VtkFrame {
             positions: &self.positions,
             triangles: &self.triangles,
             point_data: vec![
@@ -412,7 +435,16 @@ impl FrameSink for VtkSink {
                 ("von_mises", DataArray::Scalars(&self.von_mises)),
                 ("det_F", DataArray::Scalars(&self.det_f)),
             ],
+            field_data: Vec::new(),
         };
+        if let Some((tags, names)) = &self.region {
+            frame.cell_data.push(("region", DataArray::Tags(tags)));
+            frame.field_data.push(("region_names", names));
+        }
+        if let Some((tags, names)) = &self.mesh_region {
+            frame.cell_data.push(("mesh_region", DataArray::Tags(tags)));
+            frame.field_data.push(("mesh_region_names", names));
+        }
         self.writer
             .add(f.time, &frame)
             .map(|_| ())

@@ -14,6 +14,12 @@
 //! mesh has no seams. Per-element fields are flat per triangle; per-vertex fields are
 //! interpolated linearly in value, then mapped through the colormap per pixel. The outer boundary
 //! gets a thin anti-aliased outline, which also smooths the staircase of the fill.
+//!
+//! A panel may draw some triangles in one flat colour whatever the field says
+//! ([`FlatElements`], e.g. bone inside soft tissue): they are left out of the automatic colour
+//! range, and a labelled flat colour gets a legend row (swatch and label) under the colorbar,
+//! which shortens the bar. Extra edges ([`MeshView::outline_edges`], e.g. the bones' outlines
+//! from [`region_edges`]) are drawn as thin dark lines over the fill.
 
 use resvg::tiny_skia as sk;
 
@@ -42,6 +48,10 @@ pub const WIREFRAME_COLOR: [u8; 3] = [20, 20, 24];
 pub const WIREFRAME_ALPHA: f32 = 0.35;
 /// The light frame around each panel's drawing area and the colorbar.
 pub const FRAME_COLOR: [u8; 3] = [205, 205, 210];
+/// The thin lines of [`MeshView::outline_edges`] (e.g. the outlines of bones).
+pub const EDGE_COLOR: [u8; 3] = [45, 40, 36];
+/// Opacity of [`MeshView::outline_edges`].
+pub const EDGE_ALPHA: f32 = 0.85;
 
 const MARGIN: u32 = 14;
 const TITLE_SIZE: f32 = 18.0;
@@ -58,6 +68,9 @@ const LABEL_SIZE: f32 = 13.0;
 const LABEL_GAP: u32 = 10;
 const TIME_SIZE: f32 = 13.0;
 const TIME_COLOR: [u8; 3] = [80, 80, 86];
+/// Height of one legend row under the colorbar (a swatch of a flat colour and its label).
+const LEGEND_ROW: u32 = 22;
+const LEGEND_SWATCH: u32 = 12;
 /// Largest accepted panel side, in pixels.
 const MAX_PANEL_SIDE: u32 = 16_384;
 
@@ -87,10 +100,18 @@ pub struct MeshView<'a> {
     pub obstacles: &'a [Vec<[f64; 2]>],
     /// Text above the panel (e.g. "Neo-Hookean"); may be empty.
     pub caption: &'a str,
+    /// Triangles drawn in one flat colour instead of by the field, and left out of the
+    /// automatic colour range (e.g. bone inside soft tissue, whose stress would swamp the
+    /// scale). `None`: every triangle shows the field.
+    pub flat: Option<FlatElements<'a>>,
+    /// Edges (pairs of indices into `positions`) drawn as thin dark lines ([`EDGE_COLOR`])
+    /// over the fill, e.g. the outlines of material regions ([`region_edges`]); may be empty.
+    pub outline_edges: &'a [[usize; 2]],
 }
 
 impl<'a> MeshView<'a> {
-    /// A panel with just a mesh: no field, no rest outline, no obstacles, no caption.
+    /// A panel with just a mesh: no field, no rest outline, no obstacles, no caption, no flat
+    /// elements, no outline edges.
     pub fn new(positions: &'a [[f64; 2]], triangles: &'a [[usize; 3]]) -> Self {
         MeshView {
             positions,
@@ -99,8 +120,66 @@ impl<'a> MeshView<'a> {
             rest_positions: None,
             obstacles: &[],
             caption: "",
+            flat: None,
+            outline_edges: &[],
         }
     }
+}
+
+/// Triangles of a panel drawn in one flat colour, whatever the field says.
+#[derive(Debug, Clone, Copy)]
+pub struct FlatElements<'a> {
+    /// One entry per triangle: `true` draws it in `color`.
+    pub mask: &'a [bool],
+    /// The colour of the masked triangles.
+    pub color: [u8; 3],
+    /// The legend entry under the colorbar (a swatch of `color` and this text), drawn when the
+    /// frame has a colorbar; empty for none.
+    pub label: &'a str,
+}
+
+/// The edges where `tags` change: every edge between two triangles of different tags, and
+/// every boundary edge (used by one triangle) of a triangle whose tag `outline_boundary`
+/// accepts, as `[smaller vertex, larger vertex]` in increasing order. With per-triangle
+/// tissue tags this is the outline of every bone ([`MeshView::outline_edges`]).
+///
+/// # Panics
+/// If `tags` and `triangles` differ in length.
+pub fn region_edges(
+    triangles: &[[usize; 3]],
+    tags: &[u32],
+    outline_boundary: impl Fn(u32) -> bool,
+) -> Vec<[usize; 2]> {
+    assert_eq!(
+        triangles.len(),
+        tags.len(),
+        "region_edges: one tag per triangle"
+    );
+    // Every edge with its triangle's tag, sorted so the (at most two) uses of an edge meet.
+    let mut uses: Vec<([usize; 2], u32)> = triangles
+        .iter()
+        .zip(tags)
+        .flat_map(|(t, &tag)| {
+            (0..3).map(move |k| {
+                let (a, b) = (t[k], t[(k + 1) % 3]);
+                ([a.min(b), a.max(b)], tag)
+            })
+        })
+        .collect();
+    uses.sort_unstable();
+    let mut out = Vec::new();
+    let mut i = 0;
+    while i < uses.len() {
+        let edge = uses[i].0;
+        let j = i + uses[i..].iter().take_while(|u| u.0 == edge).count();
+        let group = &uses[i..j];
+        let changes = group.iter().any(|u| u.1 != group[0].1);
+        if changes || (group.len() == 1 && outline_boundary(group[0].1)) {
+            out.push(edge);
+        }
+        i = j;
+    }
+    out
 }
 
 /// How a frame is drawn.
@@ -165,6 +244,10 @@ pub struct Rendered {
     pub colorbar: Option<ColorbarGeometry>,
     /// The displayed range actually used (`lo`, `hi`); `None` when no panel has a field.
     pub range: Option<(f64, f64)>,
+    /// The legend entries under the colorbar, one per distinct labelled
+    /// [`FlatElements`] (label and colour), in panel order: the label and its swatch
+    /// `[x0, y0, x1, y1]` (exclusive ends) in the image.
+    pub legend: Vec<(String, [u32; 4])>,
 }
 
 /// Where one panel is on the image and how world coordinates map to it.
@@ -265,7 +348,8 @@ pub fn render(panels: &[MeshView<'_>], style: &FrameStyle) -> Result<Rendered> {
         None => fit_bounds(panels, style),
     };
     let ticks = range.map(Ticks::new);
-    let layout = Layout::new(panels, style, ticks.as_ref());
+    let entries = legend_entries(panels);
+    let layout = Layout::new(panels, style, ticks.as_ref(), entries.len());
 
     let mut image = Image::new(
         layout.width,
@@ -342,12 +426,70 @@ pub fn render(panels: &[MeshView<'_>], style: &FrameStyle) -> Result<Rendered> {
         }
         _ => None,
     };
+    let legend = match colorbar {
+        Some(bar) => draw_legend(&mut canvas, &bar, &layout, &entries),
+        None => Vec::new(),
+    };
     Ok(Rendered {
         image,
         panels: geometries,
         colorbar,
         range,
+        legend,
     })
+}
+
+/// The distinct labelled flat colours of the panels, in panel order.
+fn legend_entries<'a>(panels: &[MeshView<'a>]) -> Vec<(&'a str, [u8; 3])> {
+    let mut out: Vec<(&str, [u8; 3])> = Vec::new();
+    for f in panels.iter().filter_map(|p| p.flat) {
+        if !f.label.is_empty() && !out.contains(&(f.label, f.color)) {
+            out.push((f.label, f.color));
+        }
+    }
+    out
+}
+
+/// Draws one row per entry under the colorbar: a framed swatch and its label.
+fn draw_legend(
+    canvas: &mut Canvas<'_>,
+    bar: &ColorbarGeometry,
+    layout: &Layout,
+    entries: &[(&str, [u8; 3])],
+) -> Vec<(String, [u32; 4])> {
+    let cap = text::cap_height(LABEL_SIZE);
+    let mut out = Vec::new();
+    for (k, &(label, color)) in entries.iter().enumerate() {
+        let top = bar.y1 + BAR_INSET + k as u32 * LEGEND_ROW + (LEGEND_ROW - LEGEND_SWATCH) / 2;
+        let rect = [bar.x0, top, bar.x1, top + LEGEND_SWATCH];
+        canvas.fill_rect(
+            rect[0] as i32,
+            rect[1] as i32,
+            rect[2] as i32,
+            rect[3] as i32,
+            color,
+        );
+        frame_rect(
+            canvas,
+            rect[0] as i32,
+            rect[1] as i32,
+            rect[2] as i32,
+            rect[3] as i32,
+            [120, 120, 126],
+        );
+        let baseline = 0.5 * (rect[1] + rect[3]) as f32 + 0.5 * cap;
+        text::draw(
+            canvas,
+            label,
+            LABEL_SIZE,
+            layout.tick_label_x as f32,
+            baseline,
+            Align::Left,
+            TEXT_COLOR,
+        );
+        out.push((label.to_owned(), rect));
+    }
+    out
 }
 
 fn input(msg: String) -> RenderError {
@@ -445,6 +587,22 @@ fn validate(panels: &[MeshView<'_>], style: &FrameStyle) -> Result<()> {
             }
             _ => {}
         }
+        if let Some(f) = view.flat
+            && f.mask.len() != view.triangles.len()
+        {
+            return Err(input(format!(
+                "{}: the flat-element mask has {} entries but the mesh has {} triangles",
+                name(),
+                f.mask.len(),
+                view.triangles.len()
+            )));
+        }
+        if let Some(e) = view.outline_edges.iter().find(|e| e[0] >= n || e[1] >= n) {
+            return Err(input(format!(
+                "{}: outline edge {e:?} uses a vertex beyond the {n} positions",
+                name()
+            )));
+        }
         if let Some(rest) = view.rest_positions {
             if rest.len() != n {
                 return Err(input(format!(
@@ -483,16 +641,35 @@ fn field_range(panels: &[MeshView<'_>], style: &FrameStyle) -> Option<(f64, f64)
         return Some(r);
     }
     let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    let mut add = |v: f64| {
+        let d = v * style.scale;
+        if d.is_finite() {
+            lo = lo.min(d);
+            hi = hi.max(d);
+        }
+    };
     for view in panels {
-        let values = match view.field {
-            Some(FieldValues::PerElement(v)) | Some(FieldValues::PerVertex(v)) => v,
-            None => continue,
-        };
-        for &v in values {
-            let d = v * style.scale;
-            if d.is_finite() {
-                lo = lo.min(d);
-                hi = hi.max(d);
+        let mask = view.flat.map(|f| f.mask);
+        match (view.field, mask) {
+            (None, _) => {}
+            (Some(FieldValues::PerElement(v) | FieldValues::PerVertex(v)), None) => {
+                v.iter().for_each(|&v| add(v))
+            }
+            // Flat triangles do not count; a vertex counts when a shown triangle uses it.
+            (Some(FieldValues::PerElement(v)), Some(mask)) => v
+                .iter()
+                .zip(mask)
+                .filter(|(_, m)| !**m)
+                .for_each(|(&v, _)| add(v)),
+            (Some(FieldValues::PerVertex(v)), Some(mask)) => {
+                let mut shown = vec![false; v.len()];
+                for (t, _) in view.triangles.iter().zip(mask).filter(|(_, m)| !**m) {
+                    t.iter().for_each(|&i| shown[i] = true);
+                }
+                v.iter()
+                    .zip(&shown)
+                    .filter(|(_, s)| **s)
+                    .for_each(|(&v, _)| add(v));
             }
         }
     }
@@ -565,7 +742,12 @@ struct Layout {
 }
 
 impl Layout {
-    fn new(panels: &[MeshView<'_>], style: &FrameStyle, ticks: Option<&Ticks>) -> Self {
+    fn new(
+        panels: &[MeshView<'_>],
+        style: &FrameStyle,
+        ticks: Option<&Ticks>,
+        legend_rows: usize,
+    ) -> Self {
         let n = panels.len() as u32;
         let has_title = !style.title.is_empty() || style.time_label.is_some();
         let has_captions = panels.iter().any(|p| !p.caption.is_empty());
@@ -594,11 +776,15 @@ impl Layout {
             } else {
                 0
             };
+            // Legend rows under the bar, as long as the bar keeps half the panel's height.
+            let legend = (legend_rows as u32 * LEGEND_ROW + inset).min(style.panel_height / 2);
             let b = ColorbarGeometry {
                 x0,
                 y0: panel_y0 + inset,
                 x1: x0 + BAR_WIDTH,
-                y1: panel_y0 + style.panel_height - inset,
+                y1: panel_y0 + style.panel_height
+                    - inset
+                    - if legend_rows > 0 { legend } else { 0 },
             };
             tick_label_x = b.x1 + 1 + TICK_LEN + 3;
             let reserve = text::width("\u{2212}0.0000", TICK_SIZE);
@@ -915,14 +1101,21 @@ fn draw_panel(
                 }
             }
         }
+        if let Some(f) = view.flat {
+            for (t, _) in view.triangles.iter().zip(f.mask).filter(|(_, m)| **m) {
+                fill_triangle(tri_fixed(t), clip, |y, a, b| {
+                    write_span(&mut canvas, y, a, b, f.color)
+                });
+            }
+        }
+        let px = |i: usize| {
+            let q = fixed[i];
+            [
+                q[0] as f64 / crate::raster::SUBPIXEL as f64,
+                q[1] as f64 / crate::raster::SUBPIXEL as f64,
+            ]
+        };
         if style.wireframe {
-            let px = |i: usize| {
-                let q = fixed[i];
-                [
-                    q[0] as f64 / crate::raster::SUBPIXEL as f64,
-                    q[1] as f64 / crate::raster::SUBPIXEL as f64,
-                ]
-            };
             for t in view.triangles {
                 for k in 0..3 {
                     let (a, b) = (t[k], t[(k + 1) % 3]);
@@ -933,6 +1126,9 @@ fn draw_panel(
                     }
                 }
             }
+        }
+        for e in view.outline_edges {
+            canvas.line_aa(px(e[0]), px(e[1]), EDGE_COLOR, EDGE_ALPHA);
         }
     }
 

@@ -32,7 +32,7 @@ pub use error::{RenderError, Result};
 pub use image::{Image, Rgba};
 
 pub use colormap::Colormap;
-pub use frame::{FieldValues, FrameStyle, MeshView, Rendered};
+pub use frame::{FieldValues, FlatElements, FrameStyle, MeshView, Rendered};
 pub use gif::GifWriter;
 
 /// The types most programs need, in one import: `use fem_render::prelude::*;`.

@@ -5,7 +5,10 @@
 //! The mesh is 2D: points are written in 3D with z = 0, cells are linear triangles
 //! (`VTK_TRIANGLE`, type 5). Point data and cell data are scalars or 2-vectors; vectors are written
 //! with three components (z = 0) so ParaView can glyph and warp by them. The first scalar and
-//! the first vector array of each section are marked active (`Scalars=`/`Vectors=`).
+//! the first vector array of each section are marked active (`Scalars=`/`Vectors=`). Integer
+//! tags (a region index per cell) are written as `UInt32` arrays; lists of names (what each
+//! tag means) as string arrays in the data set's `FieldData`, which ParaView lists in its
+//! Information panel and spreadsheet view.
 //!
 //! Everything is written in the ASCII format with the shortest representation that reads back
 //! to the same `f64`, so values survive a write/read round trip bit for bit. Non-finite values
@@ -23,6 +26,7 @@
 //!     triangles: &triangles,
 //!     point_data: vec![],
 //!     cell_data: vec![("von_mises", DataArray::Scalars(&stress))],
+//!     field_data: vec![],
 //! };
 //! run.add(0.0, &frame)?; // out/beam_000000.vtu
 //! run.finish()?; // out/beam.pvd
@@ -44,6 +48,9 @@ pub enum DataArray<'a> {
     Scalars(&'a [f64]),
     /// One 2-vector per point or cell (written with three components, z = 0).
     Vectors(&'a [[f64; 2]]),
+    /// One non-negative integer per point or cell, e.g. a region index (written as `UInt32`
+    /// with one component; read back as `f64` like every array).
+    Tags(&'a [u32]),
 }
 
 impl DataArray<'_> {
@@ -52,6 +59,7 @@ impl DataArray<'_> {
         match self {
             DataArray::Scalars(v) => v.len(),
             DataArray::Vectors(v) => v.len(),
+            DataArray::Tags(v) => v.len(),
         }
     }
 
@@ -63,7 +71,7 @@ impl DataArray<'_> {
     /// Number of components written to the file: 1 for scalars, 3 for vectors.
     pub fn components(&self) -> usize {
         match self {
-            DataArray::Scalars(_) => 1,
+            DataArray::Scalars(_) | DataArray::Tags(_) => 1,
             DataArray::Vectors(_) => 3,
         }
     }
@@ -80,6 +88,10 @@ pub struct VtkFrame<'a> {
     pub point_data: Vec<(&'a str, DataArray<'a>)>,
     /// Arrays with one entry per triangle, e.g. `("von_mises", DataArray::Scalars(..))`.
     pub cell_data: Vec<(&'a str, DataArray<'a>)>,
+    /// Lists of strings attached to the whole data set (VTK `FieldData`), e.g.
+    /// `("region_names", &names)` saying what each value of a `region` cell array means.
+    /// A string may not contain NUL (it ends each string in the file).
+    pub field_data: Vec<(&'a str, &'a [String])>,
 }
 
 impl<'a> VtkFrame<'a> {
@@ -90,6 +102,7 @@ impl<'a> VtkFrame<'a> {
             triangles,
             point_data: Vec::new(),
             cell_data: Vec::new(),
+            field_data: Vec::new(),
         }
     }
 }
@@ -158,6 +171,7 @@ fn check_arrays(kind: &str, what: &str, arrays: &[(&str, DataArray<'_>)], n: usi
                 .iter()
                 .position(|x| !(x[0].is_finite() && x[1].is_finite()))
                 .map(|j| (j, format!("[{}, {}]", v[j][0], v[j][1]))),
+            DataArray::Tags(_) => None,
         };
         if let Some((j, value)) = bad {
             return Err(RenderError::Input(format!(
@@ -195,7 +209,45 @@ fn validate(frame: &VtkFrame<'_>) -> Result<()> {
         &frame.cell_data,
         frame.triangles.len(),
     )?;
+    for (i, (name, strings)) in frame.field_data.iter().enumerate() {
+        check_name("field data", i, name)?;
+        if frame.field_data[..i].iter().any(|(other, _)| other == name) {
+            return Err(RenderError::Input(format!(
+                "field data array name {name:?} is used more than once"
+            )));
+        }
+        if let Some(j) = strings.iter().position(|s| s.contains('\0')) {
+            return Err(RenderError::Input(format!(
+                "field data array {name:?} entry {j} contains NUL, which ends a string in VTK"
+            )));
+        }
+    }
     Ok(())
+}
+
+/// The data set's `FieldData` section: each list of strings as a VTK string array, in ASCII
+/// as VTK writes it (each string's bytes as numbers, then 0), one string per line.
+fn push_field_data(out: &mut String, arrays: &[(&str, &[String])]) {
+    if arrays.is_empty() {
+        return;
+    }
+    out.push_str("    <FieldData>\n");
+    for (name, strings) in arrays {
+        out.push_str("      <Array type=\"String\" Name=\"");
+        out.push_str(name);
+        out.push_str("\" NumberOfTuples=\"");
+        push_usize(out, strings.len());
+        out.push_str("\" format=\"ascii\">\n");
+        for s in *strings {
+            for b in s.bytes() {
+                push_usize(out, b as usize);
+                out.push(' ');
+            }
+            out.push_str("0\n");
+        }
+        out.push_str("      </Array>\n");
+    }
+    out.push_str("    </FieldData>\n");
 }
 
 fn push_section(out: &mut String, tag: &str, arrays: &[(&str, DataArray<'_>)]) {
@@ -219,7 +271,12 @@ fn push_section(out: &mut String, tag: &str, arrays: &[(&str, DataArray<'_>)]) {
     }
     out.push_str(">\n");
     for (name, array) in arrays {
-        out.push_str("        <DataArray type=\"Float64\" Name=\"");
+        out.push_str("        <DataArray type=\"");
+        out.push_str(match array {
+            DataArray::Tags(_) => "UInt32",
+            DataArray::Scalars(_) | DataArray::Vectors(_) => "Float64",
+        });
+        out.push_str("\" Name=\"");
         out.push_str(name);
         out.push_str("\" NumberOfComponents=\"");
         push_usize(out, array.components());
@@ -244,6 +301,17 @@ fn push_section(out: &mut String, tag: &str, arrays: &[(&str, DataArray<'_>)]) {
                     out.push_str(" 0\n");
                 }
             }
+            DataArray::Tags(values) => {
+                for row in values.chunks(24) {
+                    for (k, &v) in row.iter().enumerate() {
+                        if k > 0 {
+                            out.push(' ');
+                        }
+                        push_usize(out, v as usize);
+                    }
+                    out.push('\n');
+                }
+            }
         }
         out.push_str("        </DataArray>\n");
     }
@@ -257,7 +325,8 @@ fn push_section(out: &mut String, tag: &str, arrays: &[(&str, DataArray<'_>)]) {
 /// Fails with [`RenderError::Input`] if a triangle refers to a point that does not exist, a
 /// data array's length differs from the number of points or cells, a name is empty, used twice
 /// in the same section, or contains a character that would break an XML attribute (quotes,
-/// `<`, `>`, `&`, control characters), or a position or data value is not finite.
+/// `<`, `>`, `&`, control characters), a position or data value is not finite, or a field
+/// data string contains NUL.
 pub fn vtu_string(frame: &VtkFrame<'_>) -> Result<String> {
     validate(frame)?;
     let np = frame.positions.len();
@@ -273,6 +342,7 @@ pub fn vtu_string(frame: &VtkFrame<'_>) -> Result<String> {
          header_type=\"UInt64\">\n",
     );
     out.push_str("  <UnstructuredGrid>\n");
+    push_field_data(&mut out, &frame.field_data);
     out.push_str("    <Piece NumberOfPoints=\"");
     push_usize(&mut out, np);
     out.push_str("\" NumberOfCells=\"");
@@ -507,6 +577,9 @@ pub struct VtuData {
     pub point_data: Vec<(String, usize, Vec<f64>)>,
     /// Cell data arrays: `(name, number of components, values)`, values tuple by tuple.
     pub cell_data: Vec<(String, usize, Vec<f64>)>,
+    /// The data set's string arrays (`FieldData`): `(name, strings)`. Numeric field data
+    /// arrays are not read.
+    pub field_data: Vec<(String, Vec<String>)>,
 }
 
 impl VtuData {
@@ -518,6 +591,14 @@ impl VtuData {
     /// The cell data array called `name`: `(components, values)`.
     pub fn cell_array(&self, name: &str) -> Option<(usize, &[f64])> {
         find_array(&self.cell_data, name)
+    }
+
+    /// The field data string array called `name`.
+    pub fn field_strings(&self, name: &str) -> Option<&[String]> {
+        self.field_data
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|(_, v)| v.as_slice())
     }
 }
 
@@ -656,6 +737,51 @@ fn read_section(
     Ok(arrays)
 }
 
+/// The string arrays of the data set's `<FieldData>` (none without one): each `<Array
+/// type="String">` as VTK writes it in ASCII, byte values with 0 ending each string.
+fn read_field_strings(
+    grid: Node<'_, '_>,
+) -> std::result::Result<Vec<(String, Vec<String>)>, String> {
+    let Some(section) = grid
+        .children()
+        .find(|c| c.is_element() && c.tag_name().name() == "FieldData")
+    else {
+        return Ok(Vec::new());
+    };
+    let mut arrays = Vec::new();
+    for node in section.children().filter(|c| {
+        c.is_element() && c.tag_name().name() == "Array" && c.attribute("type") == Some("String")
+    }) {
+        let name = node
+            .attribute("Name")
+            .ok_or_else(|| "<FieldData>: an <Array> has no Name attribute".to_owned())?;
+        let label = format!("FieldData Array {name:?}");
+        let bytes = parse_values(node, &label, None, |t| t.parse::<u8>().ok())?;
+        if bytes.last().is_some_and(|&b| b != 0) {
+            return Err(format!("{label}: the last string does not end with 0"));
+        }
+        let strings: Vec<String> = bytes
+            .split(|&b| b == 0)
+            .take(bytes.iter().filter(|&&b| b == 0).count())
+            .map(|s| String::from_utf8_lossy(s).into_owned())
+            .collect();
+        if let Some(n) = node.attribute("NumberOfTuples") {
+            let n: usize = n
+                .trim()
+                .parse()
+                .map_err(|_| format!("{label}: NumberOfTuples={n:?} is not an integer"))?;
+            if n != strings.len() {
+                return Err(format!(
+                    "{label}: NumberOfTuples={n}, but it holds {} strings",
+                    strings.len()
+                ));
+            }
+        }
+        arrays.push((name.to_owned(), strings));
+    }
+    Ok(arrays)
+}
+
 /// The document's `<VTKFile>` root, checked to be of `kind` (`UnstructuredGrid`, `Collection`).
 fn vtk_root<'a, 'i>(
     doc: &'a roxmltree::Document<'i>,
@@ -759,12 +885,14 @@ pub fn parse_vtu(xml: &str) -> std::result::Result<VtuData, String> {
 
     let point_data = read_section(piece, "PointData", np, "points")?;
     let cell_data = read_section(piece, "CellData", nc, "cells")?;
+    let field_data = read_field_strings(grid)?;
     Ok(VtuData {
         points,
         cells,
         cell_types,
         point_data,
         cell_data,
+        field_data,
     })
 }
 

@@ -1,9 +1,11 @@
 //! Integration tests of `fem_render::frame`: layout, seamless fill, colorbar mapping,
-//! interpolation, obstacles, error messages, and a sample picture for eyeballing.
+//! interpolation, obstacles, flat elements and outline edges, error messages, and a sample
+//! picture for eyeballing.
 
 use fem_render::colormap::{Colormap, NO_DATA};
 use fem_render::frame::{
-    FieldValues, FrameStyle, MESH_COLOR, MeshView, OBSTACLE_COLOR, Rendered, render,
+    EDGE_COLOR, FieldValues, FlatElements, FrameStyle, MESH_COLOR, MeshView, OBSTACLE_COLOR,
+    Rendered, region_edges, render,
 };
 use fem_render::{Image, RenderError};
 
@@ -757,4 +759,199 @@ fn write_sample_picture() {
         .unwrap();
     let back = Image::from_png(&r.image.to_png().unwrap()).unwrap();
     assert_eq!(back, r.image);
+}
+
+const IVORY: [u8; 3] = [232, 224, 200];
+
+/// Positions, triangles, a tag per triangle and a per-element field.
+type TaggedMesh = (Vec<[f64; 2]>, Vec<[usize; 3]>, Vec<u32>, Vec<f64>);
+
+/// A 10 x 4 grid whose right half (centroid x > 1) is "bone" (tag 1), with a per-element field
+/// of 1 kPa-ish in the soft half and a thousand times more in the bone.
+fn two_tissues() -> TaggedMesh {
+    let (pos, tris) = grid(10, 4, 2.0, 0.8, 0.0);
+    let tags: Vec<u32> = tris
+        .iter()
+        .map(|&t| u32::from(centroid(&pos, t)[0] > 1.0))
+        .collect();
+    let field: Vec<f64> = tris
+        .iter()
+        .zip(&tags)
+        .map(|(&t, &tag)| centroid(&pos, t)[0] * if tag == 1 { 1e6 } else { 1e3 })
+        .collect();
+    (pos, tris, tags, field)
+}
+
+#[test]
+fn flat_elements_take_their_colour_and_stay_out_of_the_range() {
+    let (pos, tris, tags, field) = two_tissues();
+    let mask: Vec<bool> = tags.iter().map(|&t| t == 1).collect();
+    let soft_max = field
+        .iter()
+        .zip(&mask)
+        .filter(|(_, m)| !**m)
+        .map(|(v, _)| *v)
+        .fold(0.0, f64::max);
+    let view = MeshView {
+        field: Some(FieldValues::PerElement(&field)),
+        flat: Some(FlatElements {
+            mask: &mask,
+            color: IVORY,
+            label: "bone",
+        }),
+        ..MeshView::new(&pos, &tris)
+    };
+    let style = FrameStyle {
+        field_label: "von Mises stress".into(),
+        unit: "kPa".into(),
+        scale: 1e-3,
+        ..FrameStyle::default()
+    };
+    let r = render(&[view], &style).unwrap();
+    // The automatic range is the soft half's: the bone's thousandfold stress does not set it.
+    let (lo, hi) = r.range.unwrap();
+    assert!((hi - soft_max * 1e-3).abs() < 1e-12, "range {lo}..{hi}");
+    for (t, &m) in tris.iter().zip(&mask) {
+        let c = pixel_at(&r, 0, centroid(&pos, *t));
+        if m {
+            assert_eq!(c, IVORY, "bone triangle {t:?}");
+        } else {
+            assert_ne!(c, IVORY, "soft triangle {t:?}");
+        }
+    }
+    // The soft triangle with the largest value has the colormap's top colour.
+    let top = tris
+        .iter()
+        .zip(&field)
+        .zip(&mask)
+        .filter(|(_, m)| !**m)
+        .max_by(|a, b| a.0.1.total_cmp(b.0.1))
+        .unwrap()
+        .0
+        .0;
+    assert_eq!(
+        pixel_at(&r, 0, centroid(&pos, *top)),
+        style.colormap.sample(1.0)
+    );
+    // One legend row under the colorbar: the swatch in the flat colour.
+    assert_eq!(r.legend.len(), 1);
+    let (label, [x0, y0, x1, y1]) = r.legend[0].clone();
+    assert_eq!(label, "bone");
+    let bar = r.colorbar.unwrap();
+    assert!(
+        y0 > bar.y1 && x0 == bar.x0 && x1 == bar.x1,
+        "{:?} {bar:?}",
+        r.legend[0]
+    );
+    assert_eq!(rgb(&r.image, (x0 + x1) / 2, (y0 + y1) / 2), IVORY);
+    // The bar is shorter than without a legend; the picture is the same size.
+    let without = render(
+        &[MeshView {
+            field: Some(FieldValues::PerElement(&field)),
+            ..MeshView::new(&pos, &tris)
+        }],
+        &style,
+    )
+    .unwrap();
+    let full = without.colorbar.unwrap();
+    assert!(bar.y1 < full.y1 && bar.y0 == full.y0);
+    assert_eq!(
+        (r.image.width(), r.image.height()),
+        (without.image.width(), without.image.height())
+    );
+    assert!(without.legend.is_empty());
+    // Without a field the flat triangles still show (a scene's set-up), with no legend.
+    let plain = render(
+        &[MeshView {
+            field: None,
+            ..view
+        }],
+        &style,
+    )
+    .unwrap();
+    assert!(plain.legend.is_empty() && plain.colorbar.is_none());
+    assert_eq!(pixel_at(&plain, 0, [1.55, 0.45]), IVORY);
+    assert_eq!(pixel_at(&plain, 0, [0.45, 0.45]), MESH_COLOR);
+    // A mask of the wrong length is an input error naming the counts.
+    let short = [true; 3];
+    let m = input_error(
+        &[MeshView {
+            flat: Some(FlatElements {
+                mask: &short,
+                color: IVORY,
+                label: "",
+            }),
+            ..view
+        }],
+        &style,
+    );
+    assert!(
+        m.contains("3 entries") && m.contains(&format!("{} triangles", tris.len())),
+        "{m}"
+    );
+}
+
+#[test]
+fn region_edges_are_where_tags_change_and_the_outlined_boundary() {
+    let (pos, tris, tags, _) = two_tissues();
+    let inner = region_edges(&tris, &tags, |_| false);
+    // The interface x = 1 between the halves: 4 cells high, one edge per cell.
+    assert_eq!(inner.len(), 4);
+    for e in &inner {
+        assert!(pos[e[0]][0] == 1.0 && pos[e[1]][0] == 1.0, "{e:?}");
+        assert!(e[0] < e[1]);
+    }
+    // With the bone's own boundary: its top, bottom and right sides too (5 + 5 + 4 edges).
+    let bone = region_edges(&tris, &tags, |t| t == 1);
+    assert_eq!(bone.len(), 4 + 14);
+    assert!(bone.windows(2).all(|w| w[0] < w[1]), "sorted, no repeats");
+    assert!(inner.iter().all(|e| bone.contains(e)));
+    // One tag: no edge inside; every boundary edge when outlined.
+    let same = vec![0; tris.len()];
+    assert!(region_edges(&tris, &same, |_| false).is_empty());
+    assert_eq!(region_edges(&tris, &same, |_| true).len(), 2 * (10 + 4));
+}
+
+#[test]
+fn outline_edges_are_drawn_dark_over_the_fill() {
+    let (pos, tris, tags, _) = two_tissues();
+    let edges = region_edges(&tris, &tags, |_| false);
+    let without = render(&[MeshView::new(&pos, &tris)], &FrameStyle::default()).unwrap();
+    let r = render(
+        &[MeshView {
+            outline_edges: &edges,
+            ..MeshView::new(&pos, &tris)
+        }],
+        &FrameStyle::default(),
+    )
+    .unwrap();
+    let lum = |c: [u8; 3]| c.iter().map(|&v| v as f64).sum::<f64>();
+    // On the interface (x = 1): a line about one pixel wide (anti-aliased, so spread over the
+    // two pixels nearest to it) darkens the row by most of one pixel's worth of edge colour;
+    // away from it, nothing changes.
+    for y in [0.1, 0.3, 0.5, 0.7] {
+        let q = r.panels[0].world_to_pixel([1.0, y]);
+        let (x, row) = (q[0].floor() as u32, q[1].floor() as u32);
+        let darkening: f64 = (x - 1..=x + 1)
+            .map(|i| lum(rgb(&without.image, i, row)) - lum(rgb(&r.image, i, row)))
+            .sum();
+        let full = lum(MESH_COLOR) - lum(EDGE_COLOR);
+        assert!(
+            darkening > 0.7 * full && darkening < 1.05 * full,
+            "interface at y = {y}: darkening {darkening}, one pixel of edge colour {full}"
+        );
+        for x in [0.5, 1.5] {
+            assert_eq!(pixel_at(&r, 0, [x, y]), pixel_at(&without, 0, [x, y]));
+        }
+    }
+    // An edge naming a missing vertex is an input error.
+    let bad = [[0, pos.len()]];
+    let m = input_error(
+        &[MeshView {
+            outline_edges: &bad,
+            ..MeshView::new(&pos, &tris)
+        }],
+        &FrameStyle::default(),
+    );
+    assert!(m.contains("outline edge"), "{m}");
 }

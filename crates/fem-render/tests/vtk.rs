@@ -121,6 +121,7 @@ fn frame<'a>(
             ("von_mises", DataArray::Scalars(&f.von_mises)),
             ("det_F", DataArray::Scalars(&f.det_f)),
         ],
+        field_data: vec![],
     }
 }
 
@@ -199,6 +200,7 @@ fn empty_frame_round_trips() {
             cell_types: vec![],
             point_data: vec![],
             cell_data: vec![],
+            field_data: vec![],
         }
     );
 }
@@ -773,4 +775,111 @@ fn large_frame_round_trips() {
     let data = read_vtu(&path).unwrap();
     assert_eq!(data.cells.len(), triangles.len());
     assert_bits_eq("det_F", data.cell_array("det_F").unwrap().1, &f.det_f);
+}
+
+/// Region tags as `UInt32` cell data and their names as `FieldData` string arrays, in the form
+/// VTK itself writes (each string's bytes, then 0), read back exactly; the active scalar stays
+/// the first `Float64` scalar.
+#[test]
+fn tags_and_field_strings_round_trip_in_vtk_form() {
+    let (positions, triangles) = grid(4, 3);
+    let f = fields(positions.len(), triangles.len());
+    let tags: Vec<u32> = (0..triangles.len() as u32).map(|t| t % 3).collect();
+    let names = ["soft-tissue".to_owned(), "bone".to_owned(), String::new()];
+    let mut fr = frame(&positions, &triangles, &f);
+    fr.cell_data.push(("region", DataArray::Tags(&tags)));
+    fr.field_data.push(("region_names", &names));
+    let text = vtu_string(&fr).unwrap();
+
+    let doc = roxmltree::Document::parse(&text).unwrap();
+    let grid_el = el(doc.root_element(), "UnstructuredGrid");
+    let field = el(grid_el, "FieldData");
+    let array = el(field, "Array");
+    assert_eq!(array.attribute("type"), Some("String"));
+    assert_eq!(array.attribute("Name"), Some("region_names"));
+    assert_eq!(array.attribute("NumberOfTuples"), Some("3"));
+    assert_eq!(array.attribute("format"), Some("ascii"));
+    let codes: Vec<u8> = array
+        .text()
+        .unwrap()
+        .split_whitespace()
+        .map(|t| t.parse().unwrap())
+        .collect();
+    assert_eq!(codes, b"soft-tissue\0bone\0\0");
+    let cell_data = el(el(grid_el, "Piece"), "CellData");
+    assert_eq!(cell_data.attribute("Scalars"), Some("von_mises"));
+    let region = arrays(cell_data)
+        .into_iter()
+        .find(|a| a.attribute("Name") == Some("region"))
+        .unwrap();
+    assert_eq!(region.attribute("type"), Some("UInt32"));
+    assert_eq!(region.attribute("NumberOfComponents"), Some("1"));
+
+    let data = parse_vtu(&text).unwrap();
+    let want: Vec<f64> = tags.iter().map(|&t| t as f64).collect();
+    assert_eq!(data.cell_array("region"), Some((1, want.as_slice())));
+    assert_eq!(data.field_strings("region_names"), Some(names.as_slice()));
+    assert_eq!(data.field_strings("missing"), None);
+}
+
+/// The tags and field strings add their own elements and change nothing else: a frame
+/// without them is written exactly as before they existed.
+#[test]
+fn frame_without_tags_or_field_strings_is_unchanged_by_them() {
+    let (positions, triangles) = grid(3, 2);
+    let f = fields(positions.len(), triangles.len());
+    let plain = vtu_string(&frame(&positions, &triangles, &f)).unwrap();
+    assert!(!plain.contains("FieldData") && !plain.contains("UInt32"));
+    let tags = vec![7u32; triangles.len()];
+    let names = ["a".to_owned()];
+    let mut fr = frame(&positions, &triangles, &f);
+    fr.cell_data.push(("region", DataArray::Tags(&tags)));
+    fr.field_data.push(("region_names", &names));
+    let with = vtu_string(&fr).unwrap();
+    // Remove the FieldData block and the region array: what is left is the plain text.
+    let cut = |text: &str, start: &str, end: &str| -> String {
+        let a = text.find(start).unwrap();
+        let b = a + text[a..].find(end).unwrap() + end.len();
+        format!("{}{}", &text[..a], &text[b..])
+    };
+    let stripped = cut(&with, "    <FieldData>\n", "    </FieldData>\n");
+    let stripped = cut(
+        &stripped,
+        "        <DataArray type=\"UInt32\" Name=\"region\"",
+        "        </DataArray>\n",
+    );
+    assert_eq!(stripped, plain);
+}
+
+#[test]
+fn rejects_bad_field_strings() {
+    let (positions, triangles) = grid(2, 2);
+    let bad = ["ok".to_owned(), "nul\0inside".to_owned()];
+    let mut fr = VtkFrame::new(&positions, &triangles);
+    fr.field_data.push(("names", &bad));
+    let m = input_message(vtu_string(&fr));
+    assert!(
+        m.contains("\"names\"") && m.contains("entry 1") && m.contains("NUL"),
+        "{m}"
+    );
+
+    let good = ["a".to_owned()];
+    let mut fr = VtkFrame::new(&positions, &triangles);
+    fr.field_data.push(("names", &good));
+    fr.field_data.push(("names", &good));
+    let m = input_message(vtu_string(&fr));
+    assert!(m.contains("more than once"), "{m}");
+
+    // A string array whose count disagrees with its strings is a parse error.
+    let text = vtu_string(&VtkFrame {
+        field_data: vec![("names", &good)],
+        ..VtkFrame::new(&positions, &triangles)
+    })
+    .unwrap()
+    .replace("NumberOfTuples=\"1\"", "NumberOfTuples=\"2\"");
+    let e = parse_vtu(&text).unwrap_err();
+    assert!(
+        e.contains("NumberOfTuples=2") && e.contains("1 strings"),
+        "{e}"
+    );
 }

@@ -3,5 +3,7 @@
 
 mod budget;
 mod cases;
+mod figures;
 mod goldens;
 mod scene;
+mod vtk;
