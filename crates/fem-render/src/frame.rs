@@ -48,8 +48,9 @@ pub const WIREFRAME_COLOR: [u8; 3] = [20, 20, 24];
 pub const WIREFRAME_ALPHA: f32 = 0.35;
 /// The light frame around each panel's drawing area and the colorbar.
 pub const FRAME_COLOR: [u8; 3] = [205, 205, 210];
-/// The thin lines of [`MeshView::outline_edges`] (e.g. the outlines of bones).
-pub const EDGE_COLOR: [u8; 3] = [45, 40, 36];
+/// The thin lines of [`MeshView::outline_edges`] (e.g. the outlines of bones): red, to read
+/// on every colour of the map and on the plain fill.
+pub const EDGE_COLOR: [u8; 3] = [205, 35, 30];
 /// Opacity of [`MeshView::outline_edges`].
 pub const EDGE_ALPHA: f32 = 0.85;
 
