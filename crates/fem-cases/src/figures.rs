@@ -491,22 +491,9 @@ pub fn contact_patches(
     }
     let loaded = |v: usize| p[v].is_finite() && p[v] > 0.0;
     // Boundary edges (used by one triangle), oriented as in it; next[a] = b.
-    let mut edges: Vec<([u32; 2], [u32; 2])> = run
-        .triangles
-        .iter()
-        .flat_map(|t| (0..3).map(move |k| (t[k], t[(k + 1) % 3])))
-        .map(|(a, b)| ([a.min(b), a.max(b)], [a, b]))
-        .collect();
-    edges.sort_unstable();
     let mut next = vec![u32::MAX; x.len()];
-    let mut i = 0;
-    while i < edges.len() {
-        let j = i + edges[i..].iter().take_while(|e| e.0 == edges[i].0).count();
-        if j - i == 1 {
-            let [a, b] = edges[i].1;
-            next[a as usize] = b;
-        }
-        i = j;
+    for [a, b] in fem_solvers::model::boundary_edges(&run.triangles) {
+        next[a as usize] = b;
     }
     // Walk each boundary loop from an unloaded edge, cutting it into runs of loaded edges.
     let mut seen = vec![false; x.len()];

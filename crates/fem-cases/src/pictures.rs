@@ -12,7 +12,9 @@ use std::str::FromStr;
 use fem_render::Image;
 use fem_render::chart::{LineChart, Scale, Series};
 use fem_render::colormap::Colormap;
-use fem_render::frame::{FieldValues, FlatElements, FrameStyle, MeshView, Rendered, render};
+use fem_render::frame::{
+    FieldValues, FlatElements, FrameStyle, MeshView, Rendered, render, shown_values,
+};
 use fem_render::pressure::{PressureOverlay, draw_pressure};
 
 use crate::run::{RunResult, Snapshot};
@@ -239,30 +241,13 @@ impl<'a> FramePicture<'a> {
     /// it (flat ones do not count; a per-vertex value counts when a triangle drawn by the
     /// field uses its vertex).
     pub fn range(&self) -> Option<(f64, f64)> {
-        let Some((mask, _, _)) = &self.flat else {
-            return finite_range(self.values.iter().copied());
-        };
-        if self.per_vertex {
-            let mut shown = vec![false; self.values.len()];
-            for (t, _) in self.triangles.iter().zip(mask).filter(|(_, m)| !**m) {
-                t.iter().for_each(|&i| shown[i] = true);
-            }
-            finite_range(
-                self.values
-                    .iter()
-                    .zip(&shown)
-                    .filter(|(_, s)| **s)
-                    .map(|(v, _)| *v),
-            )
+        let field = if self.per_vertex {
+            FieldValues::PerVertex(&self.values)
         } else {
-            finite_range(
-                self.values
-                    .iter()
-                    .zip(mask)
-                    .filter(|(_, m)| !**m)
-                    .map(|(v, _)| *v),
-            )
-        }
+            FieldValues::PerElement(&self.values)
+        };
+        let mask = self.flat.as_ref().map(|(mask, _, _)| mask.as_slice());
+        finite_range(shown_values(field, &self.triangles, mask))
     }
 }
 

@@ -140,7 +140,7 @@ fn run_in_pool(
             frames = Some(FramesJsonl::create(dir, planned)?);
         }
         if options.vtk {
-            vtk = Some(VtkSink::create(dir, scene)?);
+            vtk = Some(VtkSink::create(dir)?);
         }
     }
     let mut sinks: Vec<&mut dyn FrameSink> = Vec::new();
@@ -314,8 +314,7 @@ impl FrameSink for FramesJsonl {
 }
 
 /// The recorded frames as VTK: `vtk/run.pvd` and one `vtk/run_NNNNNN.vtu` per frame.
-struct VtkSink<'s> {
-    scene: &'s LoadedScene,
+struct VtkSink {
     writer: fem_render::vtk::PvdWriter,
     /// The material region of each element and the regions' names, when the scene has
     /// `[[regions]]` (set on the first frame, from its mesh, as the run sets them).
@@ -331,8 +330,8 @@ struct VtkSink<'s> {
     pressure: Vec<f64>,
 }
 
-impl<'s> VtkSink<'s> {
-    fn create(dir: &Path, scene: &'s LoadedScene) -> Result<Self, SceneError> {
+impl VtkSink {
+    fn create(dir: &Path) -> Result<Self, SceneError> {
         // Not recursive: fails rather than recreate a staging directory removed meanwhile.
         let vtk = dir.join("vtk");
         if let Err(e) = std::fs::create_dir(&vtk)
@@ -341,7 +340,6 @@ impl<'s> VtkSink<'s> {
             return Err(SceneError::Io(format!("{}: {e}", vtk.display())));
         }
         Ok(VtkSink {
-            scene,
             writer: fem_render::vtk::PvdWriter::new(&dir.join("vtk"), "run")
                 .map_err(|e| SceneError::Io(e.to_string()))?,
             region: None,
@@ -364,17 +362,16 @@ impl<'s> VtkSink<'s> {
     }
 }
 
-impl FrameSink for VtkSink<'_> {
+impl FrameSink for VtkSink {
     fn frame(&mut self, f: &Frame<'_>) -> Result<(), SceneError> {
         use fem_render::vtk::{DataArray, VtkFrame};
         if self.triangles.is_empty() {
             // fem-render takes plain index triples.
             self.triangles
                 .extend(f.mesh.triangles().iter().map(|t| t.map(|i| i as usize)));
-            if !self.scene.scene.regions.is_empty() {
-                let r = fem_scene::build::material_regions(self.scene, f.mesh)?;
-                let names = r.materials.into_iter().map(|m| m.name).collect();
-                self.region = Some((r.tags, names));
+            if f.regions.materials.len() > 1 {
+                let names = f.regions.materials.iter().map(|m| m.name.clone()).collect();
+                self.region = Some((f.regions.tags.clone(), names));
             }
             if !f.mesh.region_tags().is_empty() {
                 self.mesh_region = Some((

@@ -634,6 +634,32 @@ fn validate(panels: &[MeshView<'_>], style: &FrameStyle) -> Result<()> {
 }
 
 /// The displayed range: the style's, or the finite min..max of all fields times the scale.
+/// The values of `field` a panel shows by colour: all of them without a flat `mask`; with one,
+/// those of the triangles drawn by the field (per element) or of the vertices such a triangle
+/// uses (per vertex). What the automatic colour range spans.
+pub fn shown_values<'v>(
+    field: FieldValues<'v>,
+    triangles: &[[usize; 3]],
+    mask: Option<&[bool]>,
+) -> impl Iterator<Item = f64> + 'v {
+    let (values, shown): (&[f64], Option<Vec<bool>>) = match (field, mask) {
+        (FieldValues::PerElement(v) | FieldValues::PerVertex(v), None) => (v, None),
+        (FieldValues::PerElement(v), Some(mask)) => (v, Some(mask.iter().map(|m| !m).collect())),
+        (FieldValues::PerVertex(v), Some(mask)) => {
+            let mut shown = vec![false; v.len()];
+            for (t, _) in triangles.iter().zip(mask).filter(|(_, m)| !**m) {
+                t.iter().for_each(|&i| shown[i] = true);
+            }
+            (v, Some(shown))
+        }
+    };
+    values
+        .iter()
+        .enumerate()
+        .filter(move |(i, _)| shown.as_ref().is_none_or(|s| s[*i]))
+        .map(|(_, &v)| v)
+}
+
 fn field_range(panels: &[MeshView<'_>], style: &FrameStyle) -> Option<(f64, f64)> {
     if panels.iter().all(|p| p.field.is_none()) {
         return None;
@@ -650,28 +676,8 @@ fn field_range(panels: &[MeshView<'_>], style: &FrameStyle) -> Option<(f64, f64)
         }
     };
     for view in panels {
-        let mask = view.flat.map(|f| f.mask);
-        match (view.field, mask) {
-            (None, _) => {}
-            (Some(FieldValues::PerElement(v) | FieldValues::PerVertex(v)), None) => {
-                v.iter().for_each(|&v| add(v))
-            }
-            // Flat triangles do not count; a vertex counts when a shown triangle uses it.
-            (Some(FieldValues::PerElement(v)), Some(mask)) => v
-                .iter()
-                .zip(mask)
-                .filter(|(_, m)| !**m)
-                .for_each(|(&v, _)| add(v)),
-            (Some(FieldValues::PerVertex(v)), Some(mask)) => {
-                let mut shown = vec![false; v.len()];
-                for (t, _) in view.triangles.iter().zip(mask).filter(|(_, m)| !**m) {
-                    t.iter().for_each(|&i| shown[i] = true);
-                }
-                v.iter()
-                    .zip(&shown)
-                    .filter(|(_, s)| **s)
-                    .for_each(|(&v, _)| add(v));
-            }
+        if let Some(field) = view.field {
+            shown_values(field, view.triangles, view.flat.map(|f| f.mask)).for_each(&mut add);
         }
     }
     if lo > hi {

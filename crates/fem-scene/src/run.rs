@@ -33,8 +33,8 @@ use fem_solvers::{
 use serde::{Deserialize, Serialize};
 
 use crate::build::{
-    MeshSource, NoFiles, Probe, build_mesh, build_model, build_stepper, energy, initial_state,
-    material_regions, resolve_probes, von_mises_formula,
+    MaterialRegions, MeshSource, NoFiles, Probe, build_mesh, build_model, build_stepper, energy,
+    initial_state, material_regions, resolve_probes, von_mises_formula,
 };
 use crate::drag::{DragPlayer, DragTrajectory};
 use crate::error::SceneError;
@@ -94,6 +94,9 @@ pub struct Frame<'a> {
     /// ([`fem_solvers::pressure`]): per vertex, Pa (0 off contact), the loaded vertices, the
     /// contact length and the peak.
     pub pressure: &'a ContactPressure,
+    /// The material regions: each region's material (the base material first, then each
+    /// `[[regions]]` entry) and the region of each triangle.
+    pub regions: &'a MaterialRegions,
 }
 
 /// Receives every recorded frame of a run, in order (a file writer, a VTK writer, a canvas).
@@ -391,6 +394,8 @@ struct Recorder {
     latest: Option<Snapshot>,
     /// Per-region stress and strain.
     regions: RegionTracker,
+    /// The material regions, as the model was built with them.
+    materials: MaterialRegions,
 }
 
 impl Recorder {
@@ -472,6 +477,7 @@ impl Recorder {
             obstacles: &self.obstacles,
             contacts,
             pressure,
+            regions: &self.materials,
         };
         for sink in sinks.iter_mut() {
             sink.frame(&frame)?;
@@ -596,6 +602,7 @@ fn run_with<E: Energy>(
         snapshot_every: env.snapshot_every,
         snapshots: Vec::new(),
         latest: None,
+        materials: regions,
     };
     let outcome = step_loop(
         scene,
