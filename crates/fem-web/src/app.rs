@@ -84,6 +84,10 @@ pub struct Hud {
     pub slowed: bool,
     /// Largest von Mises stress over the triangles, Pa.
     pub peak_von_mises: Real,
+    /// Largest von Mises stress over the base material's triangles, Pa: the soft tissue of a
+    /// body with bones (`[[regions]]`), whose own peak the bones' would hide; the same as
+    /// `peak_von_mises` for a body of one material.
+    pub peak_von_mises_base: Real,
     /// Triangles with `det F <= 0`.
     pub inverted: usize,
     /// Smallest `det F`.
@@ -445,6 +449,14 @@ impl App {
             .map(|s| s.von_mises)
             .filter(|v| v.is_finite())
             .fold(0.0, Real::max);
+        let energies = self.model.energies();
+        hud.peak_von_mises_base = self
+            .stress
+            .iter()
+            .enumerate()
+            .filter(|&(t, s)| energies.tag(t) == 0 && s.von_mises.is_finite())
+            .map(|(_, s)| s.von_mises)
+            .fold(0.0, Real::max);
         // NaN counts as inverted.
         hud.inverted = self
             .stress
@@ -492,6 +504,24 @@ impl App {
     /// The body's boundary edges (counter-clockwise, the body on the left of `a -> b`).
     pub fn boundary_edges(&self) -> &[[u32; 2]] {
         self.model.boundary_edges()
+    }
+
+    /// The material region of each triangle: 0 for the base material (`[material]`), `k` for
+    /// the `k`-th `[[regions]]` entry (all 0 for a body of one material).
+    pub fn material_regions(&self) -> Vec<u32> {
+        let energies = self.model.energies();
+        (0..self.mesh.n_triangles())
+            .map(|t| energies.tag(t))
+            .collect()
+    }
+
+    /// The material regions' names, by tag: `material.name` (default `body`), then each
+    /// `[[regions]]` entry's.
+    pub fn material_region_names(&self) -> Vec<String> {
+        let s = &self.scene.scene;
+        std::iter::once(s.material.name.clone().unwrap_or_else(|| "body".into()))
+            .chain(s.regions.iter().map(|r| r.name.clone()))
+            .collect()
     }
 
     /// The field's values: one per triangle, or one per vertex for the displacement.

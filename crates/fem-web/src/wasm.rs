@@ -285,6 +285,30 @@ pub extern "C" fn boundary_edges() -> *const u32 {
     )
 }
 
+/// The material region of each triangle (u32; 0 the base material, `k` the `k`-th
+/// `[[regions]]` entry).
+#[unsafe(no_mangle)]
+pub extern "C" fn material_regions() -> *const u32 {
+    with_app(
+        |app| {
+            U32.with(|b| {
+                let mut b = b.borrow_mut();
+                b.clear();
+                b.extend(app.material_regions());
+                OUT_LEN.with(|l| *l.borrow_mut() = b.len());
+                b.as_ptr()
+            })
+        },
+        std::ptr::null(),
+    )
+}
+
+/// The material regions' names, by tag, one per line, into the text buffer.
+#[unsafe(no_mangle)]
+pub extern "C" fn material_region_names() {
+    with_app(|app| set_text(&app.material_region_names().join("\n")), ());
+}
+
 /// The normal contact pressure per vertex after the last step, Pa (f32; 0 off contact).
 #[unsafe(no_mangle)]
 pub extern "C" fn contact_pressure() -> *const f32 {
@@ -308,7 +332,8 @@ pub extern "C" fn field(kind: u32) -> *const f32 {
 /// factor, slowed (0/1), peak von Mises, inverted, min det F, area error, area change, has
 /// grab force (0/1), force x, force y, stopped on an error (0/1; the message is in the text
 /// buffer), contacts, their smallest gap (m; a huge value without contacts), their total
-/// force x, y (N), the peak contact pressure (Pa), the contact length (m).
+/// force x, y (N), the peak contact pressure (Pa), the contact length (m), the base
+/// material's peak von Mises (Pa; the soft tissue's in a body with bones).
 #[unsafe(no_mangle)]
 pub extern "C" fn hud() -> *const f64 {
     with_app(
@@ -341,6 +366,7 @@ pub extern "C" fn hud() -> *const f64 {
                 h.contact_force[1],
                 h.contact_pressure_peak,
                 h.contact_length,
+                h.peak_von_mises_base,
             ])
         },
         std::ptr::null(),

@@ -393,3 +393,42 @@ fn pushing_the_debris_into_the_leg_under_implicit_euler_is_a_clear_error_and_res
     assert!(app.hud().error.is_none());
     assert_eq!(app.step(3).unwrap(), 3);
 }
+
+#[test]
+fn material_regions_reach_the_page_and_the_hud_gives_the_base_materials_own_peak() {
+    // Case D: the bones are region 1, the soft tissue region 0; the HUD's soft tissue peak is
+    // the largest von Mises stress over region 0's triangles, below the bones' after the slab
+    // has landed.
+    let mut app = App::case("case-d").unwrap();
+    assert_eq!(app.material_region_names(), ["soft-tissue", "bone"]);
+    let regions = app.material_regions();
+    assert_eq!(regions.len(), app.triangles().len());
+    let bones = regions.iter().filter(|&&r| r == 1).count();
+    assert!(
+        bones > 100 && bones < regions.len() / 2,
+        "{bones} bone triangles"
+    );
+    assert!(regions.iter().all(|&r| r <= 1));
+    app.step(10).unwrap();
+    let vm = app.field(Field::VonMises);
+    let soft = vm
+        .iter()
+        .zip(&regions)
+        .filter(|&(_, &r)| r == 0)
+        .map(|(v, _)| *v)
+        .fold(0.0, f64::max);
+    let hud = app.hud().clone();
+    assert_eq!(hud.peak_von_mises_base, soft);
+    assert!(
+        hud.peak_von_mises_base > 0.0 && hud.peak_von_mises_base < hud.peak_von_mises,
+        "soft tissue {} Pa, body {} Pa",
+        hud.peak_von_mises_base,
+        hud.peak_von_mises
+    );
+    // Without regions every triangle is the base material and the two peaks agree.
+    assert!(!app.set("regions", "[]").unwrap(), "regions do not restart");
+    assert!(app.material_regions().iter().all(|&r| r == 0));
+    assert_eq!(app.material_region_names(), ["soft-tissue"]);
+    let hud = app.hud();
+    assert_eq!(hud.peak_von_mises_base, hud.peak_von_mises);
+}

@@ -88,6 +88,37 @@ function pressureColour(t) {
   return `rgb(${r},${g},${b})`;
 }
 
+// Stiff material regions (bone) in the stress map: one flat colour, outside the colour range
+// (their stress, a thousand times the soft tissue's, would leave the soft tissue one dark
+// colour), outlined in red as in the report's Figure 5.
+const FLAT_COLOUR = "#f4eedc";
+const OUTLINE_COLOUR = "#d0202a";
+
+// The edges to outline: between triangles of different material regions, and the boundary
+// edges of triangles not of the base material (vertex pairs, flattened).
+function regionOutline(tri, regions) {
+  const seen = new Map();
+  const out = [];
+  const nv = tri.reduce((m, v) => Math.max(m, v), 0) + 1;
+  for (let t = 0; t < tri.length / 3; t++) {
+    for (let k = 0; k < 3; k++) {
+      const a = tri[3 * t + k];
+      const b = tri[3 * t + ((k + 1) % 3)];
+      const key = Math.min(a, b) * nv + Math.max(a, b);
+      const other = seen.get(key);
+      if (other === undefined) seen.set(key, t);
+      else {
+        seen.delete(key);
+        if (regions[other] !== regions[t]) out.push(a, b);
+      }
+    }
+  }
+  for (const [key, t] of seen) {
+    if (regions[t] !== 0) out.push(Math.floor(key / nv), key % nv);
+  }
+  return Uint32Array.from(out);
+}
+
 // --- A pane ---------------------------------------------------------------------------------
 
 class Pane {
@@ -96,6 +127,9 @@ class Pane {
     this.index = index;
     this.triangles = new Uint32Array(0);
     this.boundary = new Uint32Array(0);
+    this.regions = new Uint32Array(0);
+    this.outline = new Uint32Array(0);
+    this.flatLabel = "";
     this.bounds = [0, 0, 1, 1];
     this.camera = { scale: 1, ox: 0, oy: 0, dpr: 1 };
     this.drawMs = 0;
@@ -124,7 +158,22 @@ class Pane {
     this.triangles = u32(x.triangles());
     this.boundary = u32(x.boundary_edges());
     this.bounds = f64(x.bounds());
+    this.loadRegions();
     this.sync();
+  }
+
+  // The triangles' material regions (they change with `regions` and the mesh), their
+  // outline and the flat colour's legend: the names of the regions other than the base.
+  loadRegions() {
+    const { x, u32, text } = this.io;
+    this.regions = u32(x.material_regions());
+    this.outline = this.regions.some((r) => r !== 0) ? regionOutline(this.triangles, this.regions) : new Uint32Array(0);
+    x.material_region_names();
+    const all = text().split("\n");
+    this.baseName = all[0];
+    const names = all.slice(1);
+    const used = new Set(this.regions);
+    this.flatLabel = names.filter((_, i) => used.has(i + 1)).join(", ");
   }
 
   loadCase(name) {
@@ -156,6 +205,7 @@ class Pane {
       this.boundary = u32(x.boundary_edges());
     }
     this.bounds = f64(x.bounds());
+    this.loadRegions();
     showError("");
     this.sync();
     return true;
@@ -205,8 +255,14 @@ class Pane {
     ctx.fillRect(0, 0, this.canvas.width, this.canvas.height);
     const pos = f32(x.positions());
     const values = f32(x.field(kind));
+    // Regions other than the base are drawn flat in the stress map, out of its range.
+    const regions = this.regions;
+    const flat = kind === 0 && this.outline.length > 0;
     let hi = -Infinity;
-    for (const v of values) if (Number.isFinite(v)) hi = Math.max(hi, v);
+    for (let i = 0; i < values.length; i++) {
+      if (flat && regions[i] !== 0) continue;
+      if (Number.isFinite(values[i])) hi = Math.max(hi, values[i]);
+    }
     const [lo, top] = kind === 2 ? [0, 2] : [0, hi > 0 ? hi : 1];
     // Scenery: ground and obstacles.
     const sc = f64(x.scenery());
@@ -244,7 +300,7 @@ class Pane {
       const b = tri[3 * t + 1];
       const c = tri[3 * t + 2];
       const v = kind === 1 ? (values[a] + values[b] + values[c]) / 3 : values[t];
-      ctx.fillStyle = Number.isFinite(v) ? palette[kind][Math.min(255, Math.max(0, Math.floor(((v - lo) / (top - lo)) * 256)))] : "#000";
+      ctx.fillStyle = flat && regions[t] !== 0 ? FLAT_COLOUR : Number.isFinite(v) ? palette[kind][Math.min(255, Math.max(0, Math.floor(((v - lo) / (top - lo)) * 256)))] : "#000";
       ctx.beginPath();
       ctx.moveTo(...this.toScreen(pos[2 * a], pos[2 * a + 1]));
       ctx.lineTo(...this.toScreen(pos[2 * b], pos[2 * b + 1]));
@@ -253,6 +309,7 @@ class Pane {
       ctx.fill();
       if (edges) ctx.stroke();
     }
+    if (this.outline.length > 0) this.drawOutline(pos, flat);
     this.drawPressure(pos);
     if (hand.on) {
       ctx.strokeStyle = "#06c";
@@ -263,6 +320,32 @@ class Pane {
       ctx.stroke();
     }
     return [lo, top];
+  }
+
+  // The material regions' outlines, and (when they are drawn flat) the flat colour's legend
+  // at the bottom left.
+  drawOutline(pos, flat) {
+    const ctx = this.ctx;
+    const d = this.camera.dpr;
+    const e = this.outline;
+    ctx.strokeStyle = OUTLINE_COLOUR;
+    ctx.lineWidth = 1.5 * d;
+    ctx.beginPath();
+    for (let k = 0; k < e.length / 2; k++) {
+      const a = e[2 * k];
+      const b = e[2 * k + 1];
+      ctx.moveTo(...this.toScreen(pos[2 * a], pos[2 * a + 1]));
+      ctx.lineTo(...this.toScreen(pos[2 * b], pos[2 * b + 1]));
+    }
+    ctx.stroke();
+    if (!flat) return;
+    const [lx, ly, s] = [10 * d, this.canvas.height - 24 * d, 14 * d];
+    ctx.fillStyle = FLAT_COLOUR;
+    ctx.fillRect(lx, ly, s, s);
+    ctx.strokeRect(lx, ly, s, s);
+    ctx.fillStyle = "#222";
+    ctx.font = `${11 * d}px sans-serif`;
+    ctx.fillText(`${this.flatLabel}: drawn flat, out of the stress scale`, lx + s + 6 * d, ly + 11 * d);
   }
 
   // The contact pressure along the boundary: each loaded boundary edge as a thick line whose
@@ -325,7 +408,9 @@ class Pane {
       `real-time factor ${h[5].toFixed(3)}` +
       (h[6] === 1 ? `  <span class="slow">slowed</span>` : "") +
       `\n` +
-      `peak von Mises  ${h[7].toPrecision(4)} Pa\n` +
+      `peak von Mises  ${h[7].toPrecision(4)} Pa` +
+      (this.outline.length > 0 ? `, ${this.baseName} ${h[22].toPrecision(4)} Pa` : "") +
+      `\n` +
       `inverted        ${h[8]}\n` +
       `min det F       ${h[9].toFixed(4)}\n` +
       `area error |dA| ${(100 * h[10]).toFixed(3)} %\n` +
@@ -361,6 +446,7 @@ const fem = {
   positions: (i = 0) => panes[i].io.f32(panes[i].io.x.positions()),
   field: (k, i = 0) => panes[i].io.f32(panes[i].io.x.field(k)),
   triangles: (i = 0) => Array.from(panes[i].triangles),
+  regions: (i = 0) => Array.from(panes[i].regions),
   names: (i = 0) => (panes[i].io.x.names(), panes[i].io.text()),
   stateHash: (i = 0) => (panes[i].io.x.state_hash(), panes[i].io.text()),
   get view() {
