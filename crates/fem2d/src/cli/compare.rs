@@ -45,8 +45,8 @@ pub struct CompareArgs {
     pub energies: Vec<String>,
     /// Solvers (comma-separated): explicit, pbd, xpbd, implicit, static, vbd, pd, quasi-newton
     /// (default: the paper's frameworks, explicit, pbd and xpbd). Solvers without contact
-    /// (implicit, static, vbd, pd, quasi-newton; see docs/solvers.md) give an error row on a
-    /// scene with a ground or obstacles.
+    /// (pd, quasi-newton; see docs/solvers.md) give an error row on a scene with a ground or
+    /// obstacles.
     #[arg(long, value_delimiter = ',')]
     pub solvers: Vec<String>,
     /// Iteration counts to compare, for the solvers that iterate (comma-separated; default:

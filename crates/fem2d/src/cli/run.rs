@@ -19,7 +19,7 @@ use fem_solvers::Clock;
 /// Options shared by every command that loads a scene.
 #[derive(Debug, Args, Clone)]
 pub struct SceneArgs {
-    /// A built-in case (case-a, case-b, case-c, case-d) or a scene file (.toml).
+    /// A built-in case (case-a, case-b, case-c, case-d, lower-leg) or a scene file (.toml).
     pub scene: String,
     /// Override a scene value: the key is its path in the scene file
     /// (`--set material.youngs_modulus=2000`, `--set obstacles.0.mass=50`). Repeatable; applied
