@@ -4,7 +4,8 @@
 //! module under node on cases A and D and on case A under every solver of the registry, and
 //! compares each state's fingerprint with the native build's (they must be equal, bit for
 //! bit); `--browser-test` drives the page in headless Chromium
-//! (`crates/fem-web/tests/browser/drag.mjs`), `--screenshot` saves its picture.
+//! (`crates/fem-web/tests/browser/drag.mjs`), `--screenshot PATH` saves its pictures (PATH, case A
+//! mid-drag; PATH with `-case-d` before `.png`, case D with its bones).
 //!
 //! Installs what it needs: the `wasm32-unknown-unknown` target (through rustup) when missing,
 //! and for the browser test `puppeteer-core` from the npm registry into `target/web-test/`

@@ -408,9 +408,8 @@ class Pane {
       `real-time factor ${h[5].toFixed(3)}` +
       (h[6] === 1 ? `  <span class="slow">slowed</span>` : "") +
       `\n` +
-      `peak von Mises  ${h[7].toPrecision(4)} Pa` +
-      (this.outline.length > 0 ? `, ${this.baseName} ${h[22].toPrecision(4)} Pa` : "") +
-      `\n` +
+      `peak von Mises  ${h[7].toPrecision(4)} Pa\n` +
+      (this.outline.length > 0 ? `  of ${this.baseName.padEnd(13)}${h[22].toPrecision(4)} Pa\n` : "") +
       `inverted        ${h[8]}\n` +
       `min det F       ${h[9].toFixed(4)}\n` +
       `area error |dA| ${(100 * h[10]).toFixed(3)} %\n` +

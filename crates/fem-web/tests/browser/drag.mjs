@@ -8,7 +8,8 @@
 // - side by side: a second pane (another solver) follows the same drag,
 // - a recorded drag replays in every pane from the start,
 // - and the console has no error.
-// Then it measures case D in real time (the page's own counters) and saves a screenshot.
+// Then it measures case D in real time (the page's own counters), checks that its bones are
+// drawn flat, and saves a screenshot of each (SCREENSHOT.png and SCREENSHOT-case-d.png).
 //
 //   node drag.mjs SITE_DIR [SCREENSHOT.png]   (run by `cargo xtask web --browser-test`)
 import http from "node:http";
@@ -294,6 +295,11 @@ try {
     bone.bones > 0 && bone.rgb.join() === "244,238,220",
     `case D's ${bone.bones} bone triangles are drawn flat (pixel ${bone.rgb.join(",")})`,
   );
+  if (screenshot) {
+    const shotD = screenshot.replace(/\.png$/, "") + "-case-d.png";
+    await page.screenshot({ path: shotD });
+    console.log(`screenshot: ${shotD}`);
+  }
   check(
     bone.hud[22] > 0 && bone.hud[22] < bone.hud[7] && bone.text.includes("soft-tissue"),
     `the HUD gives the soft tissue's peak (${(bone.hud[22] / 1000).toFixed(1)} kPa) beside the bones' (${(bone.hud[7] / 1000).toFixed(1)} kPa)`,
