@@ -91,6 +91,16 @@ fn out_f32(values: impl Iterator<Item = f64>) -> *const f32 {
     })
 }
 
+fn out_u32(values: impl Iterator<Item = u32>) -> *const u32 {
+    U32.with(|b| {
+        let mut b = b.borrow_mut();
+        b.clear();
+        b.extend(values);
+        OUT_LEN.with(|l| *l.borrow_mut() = b.len());
+        b.as_ptr()
+    })
+}
+
 /// A buffer of `len` bytes for the next text input; its address.
 #[unsafe(no_mangle)]
 pub extern "C" fn input(len: usize) -> *mut u8 {
@@ -254,15 +264,7 @@ pub extern "C" fn positions() -> *const f32 {
 #[unsafe(no_mangle)]
 pub extern "C" fn triangles() -> *const u32 {
     with_app(
-        |app| {
-            U32.with(|b| {
-                let mut b = b.borrow_mut();
-                b.clear();
-                b.extend(app.triangles().iter().flatten());
-                OUT_LEN.with(|l| *l.borrow_mut() = b.len());
-                b.as_ptr()
-            })
-        },
+        |app| out_u32(app.triangles().iter().flatten().copied()),
         std::ptr::null(),
     )
 }
@@ -272,15 +274,7 @@ pub extern "C" fn triangles() -> *const u32 {
 #[unsafe(no_mangle)]
 pub extern "C" fn boundary_edges() -> *const u32 {
     with_app(
-        |app| {
-            U32.with(|b| {
-                let mut b = b.borrow_mut();
-                b.clear();
-                b.extend(app.boundary_edges().iter().flatten());
-                OUT_LEN.with(|l| *l.borrow_mut() = b.len());
-                b.as_ptr()
-            })
-        },
+        |app| out_u32(app.boundary_edges().iter().flatten().copied()),
         std::ptr::null(),
     )
 }
@@ -290,15 +284,7 @@ pub extern "C" fn boundary_edges() -> *const u32 {
 #[unsafe(no_mangle)]
 pub extern "C" fn material_regions() -> *const u32 {
     with_app(
-        |app| {
-            U32.with(|b| {
-                let mut b = b.borrow_mut();
-                b.clear();
-                b.extend(app.material_regions());
-                OUT_LEN.with(|l| *l.borrow_mut() = b.len());
-                b.as_ptr()
-            })
-        },
+        |app| out_u32(app.material_regions().into_iter()),
         std::ptr::null(),
     )
 }
