@@ -95,7 +95,9 @@ const FLAT_COLOUR = "#f4eedc";
 const OUTLINE_COLOUR = "#d0202a";
 
 // The edges to outline: between triangles of different material regions, and the boundary
-// edges of triangles not of the base material (vertex pairs, flattened).
+// edges of triangles not of the base material (vertex pairs, flattened). The report's
+// pictures compute the same edges in Rust (`fem_render::frame::region_edges`); the page has
+// its own few lines because the module leaves the rasteriser crate out.
 function regionOutline(tri, regions) {
   const seen = new Map();
   const out = [];
@@ -129,6 +131,7 @@ class Pane {
     this.boundary = new Uint32Array(0);
     this.regions = new Uint32Array(0);
     this.outline = new Uint32Array(0);
+    this.hasRegions = false;
     this.flatLabel = "";
     this.bounds = [0, 0, 1, 1];
     this.camera = { scale: 1, ox: 0, oy: 0, dpr: 1 };
@@ -167,7 +170,8 @@ class Pane {
   loadRegions() {
     const { x, u32, text } = this.io;
     this.regions = u32(x.material_regions());
-    this.outline = this.regions.some((r) => r !== 0) ? regionOutline(this.triangles, this.regions) : new Uint32Array(0);
+    this.hasRegions = this.regions.some((r) => r !== 0);
+    this.outline = this.hasRegions ? regionOutline(this.triangles, this.regions) : new Uint32Array(0);
     x.material_region_names();
     const all = text().split("\n");
     this.baseName = all[0];
@@ -257,7 +261,7 @@ class Pane {
     const values = f32(x.field(kind));
     // Regions other than the base are drawn flat in the stress map, out of its range.
     const regions = this.regions;
-    const flat = kind === 0 && this.outline.length > 0;
+    const flat = kind === 0 && this.hasRegions;
     let hi = -Infinity;
     for (let i = 0; i < values.length; i++) {
       if (flat && regions[i] !== 0) continue;
@@ -309,7 +313,7 @@ class Pane {
       ctx.fill();
       if (edges) ctx.stroke();
     }
-    if (this.outline.length > 0) this.drawOutline(pos, flat);
+    if (this.hasRegions) this.drawOutline(pos, flat);
     this.drawPressure(pos);
     if (hand.on) {
       ctx.strokeStyle = "#06c";
@@ -409,7 +413,7 @@ class Pane {
       (h[6] === 1 ? `  <span class="slow">slowed</span>` : "") +
       `\n` +
       `peak von Mises  ${h[7].toPrecision(4)} Pa\n` +
-      (this.outline.length > 0 ? `  of ${this.baseName.padEnd(13)}${h[22].toPrecision(4)} Pa\n` : "") +
+      (this.hasRegions ? `  of ${this.baseName.padEnd(13)}${h[22].toPrecision(4)} Pa\n` : "") +
       `inverted        ${h[8]}\n` +
       `min det F       ${h[9].toFixed(4)}\n` +
       `area error |dA| ${(100 * h[10]).toFixed(3)} %\n` +
