@@ -98,12 +98,22 @@ try {
 
   // Case A's tip: the right edge at mid-height, vertex (20, 2) of the 21 x 5 grid.
   const tip = 20 * 5 + 2;
-  let s = await state();
-  const [tx, ty] = [s.x[2 * tip], s.x[2 * tip + 1]];
-  const vmBefore = s.vm.slice();
-  const [px, py] = await screenOf(tx - 0.02, ty);
-  await page.mouse.move(px, py);
-  await page.mouse.down();
+  // The beam is swinging under gravity, and a slow frame between reading the tip and the
+  // press can leave the press off the body: as a person would, press again (at most five
+  // times) until the hand holds it.
+  let s, ty, vmBefore, px, py;
+  for (let attempt = 1; ; attempt++) {
+    s = await state();
+    let tx;
+    [tx, ty] = [s.x[2 * tip], s.x[2 * tip + 1]];
+    vmBefore = s.vm.slice();
+    [px, py] = await screenOf(tx - 0.02, ty);
+    await page.mouse.move(px, py);
+    await page.mouse.down();
+    await frames(1);
+    if ((await state()).hud[12] === 1 || attempt === 5) break;
+    await page.mouse.up();
+  }
   const rise = 120;
   for (let k = 1; k <= 30; k++) {
     await page.mouse.move(px, py - (rise * k) / 30);
