@@ -10,6 +10,11 @@
 //!   (scene fixtures, docs and tests may name solvers).
 //! - Every path `ARCHITECTURE.md` names in backticks exists.
 //! - Every Rust source file opens with a `//!` doc comment.
+//! - In the crates laid out as layered folders (`LAYERED_CRATES`: fem-solvers), the
+//!   top-level modules of `src/` (each folder, each file beside `lib.rs`) import each other
+//!   without a circle: drawn from the `crate::...` paths of their code (comments and
+//!   `#[cfg(test)] mod tests` left out; a name `lib.rs` re-exports counts as the module it
+//!   comes from), the graph has no cycle, so the tree reads bottom up.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -350,4 +355,219 @@ fn rust_version_is_at_least_every_dependencys() {
         needed.0,
         needed.1
     );
+}
+
+/// The top-level modules of a crate's `src/`: its folders and the files beside `lib.rs` (or
+/// `main.rs`), by name.
+fn top_level_modules(src: &Path) -> BTreeSet<String> {
+    let mut units = BTreeSet::new();
+    for entry in std::fs::read_dir(src).expect("src/ is readable").flatten() {
+        let path = entry.path();
+        let name = entry.file_name().to_string_lossy().into_owned();
+        if path.is_dir() {
+            units.insert(name);
+        } else if let Some(stem) = name.strip_suffix(".rs")
+            && stem != "lib"
+            && stem != "main"
+        {
+            units.insert(stem.to_owned());
+        }
+    }
+    units
+}
+
+/// A Rust file's code: comment lines dropped, and everything from a trailing
+/// `#[cfg(test)] mod tests` on (test code may reach anywhere).
+fn code_of(text: &str) -> String {
+    let mut code = String::new();
+    let mut lines = text.lines().peekable();
+    while let Some(line) = lines.next() {
+        let t = line.trim_start();
+        if t.starts_with("#[cfg(test)]")
+            && lines
+                .peek()
+                .is_some_and(|next| next.trim_start().starts_with("mod tests"))
+        {
+            break;
+        }
+        if !t.starts_with("//") {
+            code.push_str(line);
+            code.push('\n');
+        }
+    }
+    code
+}
+
+/// The first path segment after each `crate::` (or `$crate::`) in `code`.
+fn crate_paths(code: &str) -> Vec<String> {
+    code.match_indices("crate::")
+        .map(|(i, m)| {
+            code[i + m.len()..]
+                .chars()
+                .take_while(|c| c.is_alphanumeric() || *c == '_')
+                .collect()
+        })
+        .filter(|s: &String| !s.is_empty())
+        .collect()
+}
+
+/// The names `lib.rs` re-exports from a top-level module (`pub use model::{bc, Model};` maps
+/// `bc` and `Model` to `model`).
+fn root_reexports(lib: &str, units: &BTreeSet<String>) -> BTreeMap<String, String> {
+    let mut names = BTreeMap::new();
+    for statement in code_of(lib).split(';') {
+        let Some(rest) = statement.trim().strip_prefix("pub use ") else {
+            continue;
+        };
+        let rest = rest.trim().trim_start_matches("crate::");
+        let Some((first, tail)) = rest.split_once("::") else {
+            continue;
+        };
+        if !units.contains(first) {
+            continue;
+        }
+        let list = tail
+            .rsplit_once('{')
+            .map_or(tail, |(_, inner)| inner.trim_end_matches('}'));
+        for item in list.split(',') {
+            let item = item.trim();
+            let name = item.rsplit_once(" as ").map_or(item, |(_, alias)| alias);
+            let name = name.rsplit("::").next().unwrap_or(name).trim();
+            if !name.is_empty() {
+                names.insert(name.to_owned(), first.to_owned());
+            }
+        }
+    }
+    names
+}
+
+/// The first cycle of a directed graph, as its nodes in order (the first repeated at the end).
+fn find_cycle(graph: &BTreeMap<String, BTreeSet<String>>) -> Option<Vec<String>> {
+    fn visit(
+        node: &str,
+        graph: &BTreeMap<String, BTreeSet<String>>,
+        done: &mut BTreeSet<String>,
+        path: &mut Vec<String>,
+    ) -> Option<Vec<String>> {
+        if let Some(at) = path.iter().position(|p| p == node) {
+            let mut cycle = path[at..].to_vec();
+            cycle.push(node.to_owned());
+            return Some(cycle);
+        }
+        if done.contains(node) {
+            return None;
+        }
+        path.push(node.to_owned());
+        for next in graph.get(node).into_iter().flatten() {
+            if let Some(cycle) = visit(next, graph, done, path) {
+                return Some(cycle);
+            }
+        }
+        path.pop();
+        done.insert(node.to_owned());
+        None
+    }
+    let mut done = BTreeSet::new();
+    graph
+        .keys()
+        .find_map(|node| visit(node, graph, &mut done, &mut Vec::new()))
+}
+
+/// The crates whose `src/` is laid out as folders that are layers (ARCHITECTURE.md's code
+/// map); the flat crates' files may use each other freely.
+const LAYERED_CRATES: [&str; 1] = ["fem-solvers"];
+
+#[test]
+fn top_level_modules_import_each_other_without_a_circle() {
+    let crates: Vec<PathBuf> = LAYERED_CRATES
+        .iter()
+        .map(|c| root().join("crates").join(c).join("src"))
+        .collect();
+    let mut failures = Vec::new();
+    for src in &crates {
+        let units = top_level_modules(src);
+        let lib = ["lib.rs", "main.rs"]
+            .iter()
+            .find_map(|f| std::fs::read_to_string(src.join(f)).ok())
+            .unwrap_or_default();
+        let reexports = root_reexports(&lib, &units);
+        // unit -> (imported unit -> the first file that imports it)
+        let mut graph: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
+        let mut witness: BTreeMap<(String, String), String> = BTreeMap::new();
+        for unit in &units {
+            let mut files = Vec::new();
+            let dir = src.join(unit);
+            if dir.is_dir() {
+                rust_files(&dir, &mut files);
+            } else {
+                files.push(src.join(format!("{unit}.rs")));
+            }
+            files.sort();
+            for file in files {
+                let text = std::fs::read_to_string(&file).expect("a source file is readable");
+                for name in crate_paths(&code_of(&text)) {
+                    let target = if units.contains(&name) {
+                        Some(&name)
+                    } else {
+                        reexports.get(&name)
+                    };
+                    if let Some(target) = target.filter(|t| *t != unit) {
+                        graph
+                            .entry(unit.clone())
+                            .or_default()
+                            .insert(target.clone());
+                        witness
+                            .entry((unit.clone(), target.clone()))
+                            .or_insert_with(|| {
+                                file.strip_prefix(root()).unwrap().display().to_string()
+                            });
+                    }
+                }
+            }
+        }
+        if let Some(cycle) = find_cycle(&graph) {
+            let steps: Vec<String> = cycle
+                .windows(2)
+                .map(|w| {
+                    format!(
+                        "{} -> {} ({})",
+                        w[0],
+                        w[1],
+                        witness[&(w[0].clone(), w[1].clone())]
+                    )
+                })
+                .collect();
+            failures.push(format!(
+                "{}: the top-level modules import each other in a circle: {}",
+                src.parent().unwrap().display(),
+                steps.join(", ")
+            ));
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+/// The checker itself: a circle through a re-exported name is found, test code is not read.
+#[test]
+fn the_module_circle_check_sees_reexports_and_skips_tests() {
+    let units: BTreeSet<String> = ["model", "contact", "steppers"].map(String::from).into();
+    let lib = "mod model;\npub use model::{bc, grab::Grab, Model};\npub use contact::Contact;\n";
+    let names = root_reexports(lib, &units);
+    assert_eq!(names["bc"], "model");
+    assert_eq!(names["Grab"], "model");
+    assert_eq!(names["Model"], "model");
+    assert_eq!(names["Contact"], "contact");
+    let code = code_of(
+        "//! [`crate::steppers`]\nuse crate::Model;\n#[cfg(test)]\nmod tests {\n    use crate::steppers;\n}\n",
+    );
+    assert_eq!(crate_paths(&code), ["Model"]);
+    let graph: BTreeMap<String, BTreeSet<String>> = [
+        ("model".to_owned(), ["contact".to_owned()].into()),
+        ("contact".to_owned(), ["model".to_owned()].into()),
+    ]
+    .into();
+    assert_eq!(find_cycle(&graph).unwrap(), ["contact", "model", "contact"]);
+    let dag: BTreeMap<String, BTreeSet<String>> =
+        [("steppers".to_owned(), ["model".to_owned()].into())].into();
+    assert!(find_cycle(&dag).is_none());
 }

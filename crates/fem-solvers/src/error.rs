@@ -114,11 +114,13 @@ pub enum SolverError {
         reason: String,
     },
     /// A solver name is not one of [`SolverKind::ALL`](crate::SolverKind::ALL).
-    #[error(
-        "unknown solver `{0}` (expected one of: {names})",
-        names = crate::registry::solver_names()
-    )]
-    UnknownSolver(String),
+    #[error("unknown solver `{name}` (expected one of: {expected})")]
+    UnknownSolver {
+        /// The name given.
+        name: String,
+        /// The solvers' names, comma-separated in table order (the registry fills them in).
+        expected: String,
+    },
     /// A rigid body's pose or velocity became NaN or infinite.
     #[error("step {step}: rigid body of obstacles[{body}] became non-finite")]
     NonFiniteBody {

@@ -21,6 +21,14 @@
 //!   [`PbdStepper`], [`XpbdStepper`], [`ImplicitStepper`], [`StaticStepper`], [`VbdStepper`],
 //!   [`PdStepper`], [`QuasiNewtonStepper`], all behind the [`Stepper`] trait.
 //!
+//! **Where things are**: the modules are folders that are layers, each using only those
+//! listed before it: [`rigid`] (rigid bodies and the obstacles made of them), [`model`] (what
+//! every solver reads: the model, the state, boundary conditions, the grab, limits,
+//! diagnostics), [`contact`] (penalty and projection, barrier contact and its IPC primitives,
+//! the broad phase, contact pressure), [`optim`] (Newton, the Projective Dynamics matrix) and
+//! [`steppers`] (one file per solver, the registry, the step's commit and report). Every module
+//! is also re-exported under its short path ([`grab`], [`explicit`], [`pressure`], ...).
+//!
 //! **The solver registry** ([`registry`]): one list of the solvers, from which [`SolverKind`]
 //! (the names, [`SolverKind::ALL`], [`Capabilities`]), [`SolverParams`] (any solver's parameters,
 //! validated under the caller's field names, built into a stepper) and [`AnyStepper`] (the
@@ -101,38 +109,25 @@
 //! assert!(kind.capabilities().contact);
 //! ```
 
-mod barrier_contact;
-pub mod bc;
-mod broad_phase;
-pub mod colour;
-mod commit;
+// The tree is the architecture (ARCHITECTURE.md, fem-solvers): each folder imports only the
+// ones listed before it, and the root files below (`error`, `kernel`) import no folder.
 pub mod contact;
-pub mod diagnostics;
 mod error;
-pub mod explicit;
-pub mod grab;
-pub mod implicit;
-pub mod ipc;
 mod kernel;
-pub mod limits;
 pub mod model;
-pub mod newton;
-mod pd_system;
-pub mod position_based;
-pub mod pressure;
-pub mod projective;
-pub mod quasi_newton;
-pub mod registry;
-#[cfg(all(test, feature = "serde"))]
-mod registry_extension;
-mod report;
-mod state;
-pub mod statics;
+pub mod optim;
+pub mod rigid;
+pub mod steppers;
 pub mod testing;
-pub mod vbd;
 
-use fem_core::energy::Energy;
-use fem_core::math::Real;
+// Every module keeps the path it had before the folders: `fem_solvers::grab`,
+// `fem_solvers::explicit`, ...
+pub use contact::{ipc, pressure};
+pub use model::{bc, diagnostics, grab, limits};
+pub use optim::newton;
+pub use steppers::{
+    colour, explicit, implicit, position_based, projective, quasi_newton, registry, statics, vbd,
+};
 
 pub use bc::{PrescribedMotion, Region};
 pub use contact::{
@@ -142,6 +137,7 @@ pub use error::SolverError;
 pub use explicit::{ExplicitParams, ExplicitScheme, ExplicitStepper};
 pub use grab::{Grab, GrabModel};
 pub use implicit::{ImplicitParams, ImplicitStepper};
+pub use model::state::State;
 pub use model::{Model, TimeStepCheck};
 pub use newton::{NewtonParams, NewtonReport};
 pub use position_based::{
@@ -154,9 +150,9 @@ pub use registry::{
     AnyStepper, Capabilities, Clock, ParamsSerde, Solver, SolverKind, SolverParams,
     capability_table,
 };
-pub use report::StepReport;
-pub use state::State;
 pub use statics::{StaticParams, StaticReport, StaticSolver, StaticStepper};
+pub use steppers::Stepper;
+pub use steppers::report::StepReport;
 pub use vbd::{VbdInit, VbdParams, VbdStats, VbdStepper};
 
 /// fem-core, the layer below, as this crate depends on it: `fem_solvers::fem_core::...` (and
@@ -179,47 +175,6 @@ pub mod prelude {
         VbdParams, VbdStepper, XpbdParams, XpbdStepper,
     };
     pub use fem_core::prelude::*;
-}
-
-/// A stepper: advances a [`State`] of a [`Model`] by one step of its clock ([`Clock`]): a
-/// time step, or for the static solver a load increment.
-pub trait Stepper {
-    /// The time step, s; for a [`Clock::LoadFactor`] solver the nominal load increment
-    /// (dimensionless).
-    fn dt(&self) -> Real;
-
-    /// Advance `state` by one step. On error the state is unchanged (a failed substep leaves
-    /// the earlier substeps applied), and never holds a non-finite value.
-    fn step<E: Energy>(
-        &mut self,
-        model: &Model<E>,
-        state: &mut State,
-    ) -> Result<StepReport, SolverError>;
-
-    /// The contacts of the last step, where the stepper last evaluated them (penalty: the
-    /// start of the step, where its forces are; projection: the sweeps of the last substep):
-    /// where, the normal, the gap (negative: penetration) and the normal force, in a fixed
-    /// order (see [`contact`]). Empty for a stepper without contact and for a model without a
-    /// ground or obstacles.
-    fn contacts(&self) -> &[Contact] {
-        &[]
-    }
-}
-
-/// The checks every stepper makes before a step: the model is the one the stepper was built
-/// for (same triangle count) and the state matches the model.
-pub(crate) fn check_step_inputs<E: Energy>(
-    model: &Model<E>,
-    n_triangles: usize,
-    state: &State,
-) -> Result<(), SolverError> {
-    if model.mesh().n_triangles() != n_triangles {
-        return Err(SolverError::ModelMismatch {
-            got: model.mesh().n_triangles(),
-            expected: n_triangles,
-        });
-    }
-    state.check_matches(model)
 }
 
 // The README's example runs as a doctest.

@@ -14,7 +14,10 @@ use fem_core::math::{Real, Vec2};
 use fem_core::mesh::{Mesh, MeshError};
 pub use fem_core::structured::{Diagonal, NodeOrder, RectangleParams, rectangle};
 
-use crate::{Model, Region, SolverError, State};
+use crate::error::SolverError;
+use crate::model::Model;
+use crate::model::bc::Region;
+use crate::model::state::State;
 
 /// Length of the case A beam, m.
 pub const BEAM_LENGTH: Real = 5.0;

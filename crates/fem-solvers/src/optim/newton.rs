@@ -42,10 +42,10 @@ use fem_core::energy::{ElementEnergies, Energy};
 use fem_core::math::{Real, Vec2};
 use fem_core::mesh::Mesh;
 
-use crate::barrier_contact::{BarrierContact, Dof};
+use crate::contact::barrier::{BarrierContact, Dof};
 use crate::error::{SolverError, check_at_most, check_count};
-use crate::grab::{Spring, spring_energy, spring_of};
-use crate::limits;
+use crate::model::grab::{Spring, spring_energy, spring_of};
+use crate::model::limits;
 use fem_core::clock::Stopwatch;
 
 /// Convergence and line-search settings of Newton's method.

@@ -30,16 +30,17 @@
 use fem_core::energy::Energy;
 use fem_core::math::{Real, Vec2, exp};
 
-use crate::barrier_contact::{BarrierContact, end_poses, step_targets};
-use crate::commit::{Kinematic, StepEnd};
-use crate::contact::{BodyState, Contact};
+use super::{Stepper, check_step_inputs};
+use crate::contact::Contact;
+use crate::contact::barrier::{BarrierContact, end_poses, step_targets};
 use crate::error::{SolverError, check_non_negative, check_positive};
 use crate::model::Model;
-use crate::newton::{NewtonParams, NewtonReport, NewtonSolver, Potential};
-use crate::registry::{Capabilities, Clock, Solver};
-use crate::report::StepReport;
-use crate::state::State;
-use crate::{Stepper, check_step_inputs};
+use crate::model::state::State;
+use crate::optim::newton::{NewtonParams, NewtonReport, NewtonSolver, Potential};
+use crate::rigid::BodyState;
+use crate::steppers::commit::{Kinematic, StepEnd};
+use crate::steppers::registry::{Capabilities, Clock, Solver};
+use crate::steppers::report::StepReport;
 
 /// Parameters of [`ImplicitStepper`] (scene keys `dt`, `damping`, `tolerance`,
 /// `max_iterations`, `max_halvings`).

@@ -3,9 +3,9 @@
 use fem_core::energy::Energy;
 use fem_core::math::{Real, Vec2};
 
-use crate::contact::BodyState;
 use crate::error::SolverError;
 use crate::model::Model;
+use crate::rigid::BodyState;
 
 /// Positions, velocities and time of one simulation.
 #[derive(Clone, Debug, PartialEq)]

@@ -34,19 +34,20 @@
 use fem_core::energy::Energy;
 use fem_core::math::{Real, Vec2};
 
-use crate::barrier_contact::BarrierContact;
-use crate::bc::Motion;
-use crate::commit::{Kinematic, StepEnd};
-use crate::contact::{BodyState, Contact};
+use super::{Stepper, check_step_inputs};
+use crate::contact::Contact;
+use crate::contact::barrier::BarrierContact;
 use crate::error::{SolverError, check_at_most, check_count};
-use crate::implicit::external_load;
-use crate::limits;
 use crate::model::Model;
-use crate::newton::{NewtonParams, NewtonReport, NewtonSolver, Potential};
-use crate::registry::{Capabilities, Clock, Solver};
-use crate::report::StepReport;
-use crate::state::State;
-use crate::{Stepper, check_step_inputs};
+use crate::model::bc::Motion;
+use crate::model::limits;
+use crate::model::state::State;
+use crate::optim::newton::{NewtonParams, NewtonReport, NewtonSolver, Potential};
+use crate::rigid::BodyState;
+use crate::steppers::commit::{Kinematic, StepEnd};
+use crate::steppers::implicit::external_load;
+use crate::steppers::registry::{Capabilities, Clock, Solver};
+use crate::steppers::report::StepReport;
 
 /// Parameters of [`StaticStepper`] (scene keys `load_steps`, `max_bisections`, `tolerance`,
 /// `max_iterations`, `max_halvings`).

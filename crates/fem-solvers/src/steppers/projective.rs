@@ -40,19 +40,19 @@ use fem_core::math::{Mat2, Real, Vec2, exp};
 use fem_core::par::prelude::*;
 use fem_core::polar::Polar2;
 
+use super::{Stepper, check_step_inputs};
 use crate::error::{SolverError, check_count, check_non_negative, check_positive, check_rho};
-use crate::implicit::external_load;
 use crate::kernel::{
     ELEMENT_CHUNK, PackedElement, VERTEX_CHUNK, corner_gradient, deformation_gradient, pack,
 };
-use crate::limits;
 use crate::model::Model;
-use crate::pd_system::{PdSystem, element_lame};
-use crate::registry::{Capabilities, Clock, Solver};
-use crate::report::StepReport;
-use crate::state::State;
-use crate::vbd::{Chebyshev, commit_positions};
-use crate::{Stepper, check_step_inputs};
+use crate::model::limits;
+use crate::model::state::State;
+use crate::optim::pd_system::{PdSystem, element_lame};
+use crate::steppers::implicit::external_load;
+use crate::steppers::registry::{Capabilities, Clock, Solver};
+use crate::steppers::report::StepReport;
+use crate::steppers::vbd::{Chebyshev, commit_positions};
 
 /// Parameters of [`PdStepper`] (scene keys: the field names).
 #[derive(Clone, Copy, Debug, PartialEq)]

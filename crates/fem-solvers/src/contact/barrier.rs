@@ -45,12 +45,14 @@
 use fem_core::math::{Mat6, Real, Vec2, sin_cos};
 use nalgebra::SymmetricEigen;
 
-use crate::broad_phase::{Aabb, Grid};
-use crate::contact::{
-    BodyState, Contact, ContactKind, ContactParams, Ground, ObstacleMotion, strictly_inside,
-};
-use crate::ipc::{Grad6, Hess6, barrier, point_segment_barrier, point_segment_toi};
+use super::broad_phase::{Aabb, Grid};
+use super::ipc::{Grad6, Hess6, barrier, point_segment_barrier, point_segment_toi};
+use super::{Contact, ContactKind};
 use crate::model::Model;
+use crate::model::contact_params::ContactParams;
+use crate::model::state::State;
+use crate::rigid::obstacle::strictly_inside;
+use crate::rigid::{BodyState, Ground, ObstacleMotion};
 use fem_core::energy::Energy;
 
 /// The pairs' separation factor of the CCD: a step never closes a gap by more than 90 %.
@@ -1140,7 +1142,7 @@ impl BarrierContact {
 /// kinematic one (so a lag behind it never accumulates), the pose of a static one.
 pub(crate) fn step_targets<E: Energy>(
     model: &Model<E>,
-    state: &crate::State,
+    state: &State,
     h: Real,
     targets: &mut Vec<[Real; 3]>,
 ) {
@@ -1164,7 +1166,7 @@ pub(crate) fn step_targets<E: Energy>(
 pub(crate) fn end_poses<E: Energy>(
     c: &BarrierContact,
     model: &Model<E>,
-    state: &crate::State,
+    state: &State,
     h: Real,
     bodies_new: &mut Vec<BodyState>,
 ) {

@@ -28,7 +28,7 @@
 use fem_core::energy::Energy;
 use fem_core::math::{Real, Vec2};
 
-use crate::contact::{Contact, ContactKind};
+use super::{Contact, ContactKind};
 use crate::model::Model;
 
 /// The largest vertex pressure of a [`ContactPressure`] and where it acts.

@@ -24,17 +24,17 @@ use fem_core::math::{Real, Vec2, exp};
 use fem_core::par::prelude::*;
 use fem_core::simd::Isa;
 
-use crate::commit::{Kinematic, StepEnd};
-use crate::contact::{
-    Contact, ContactWorkspace, ObstacleMotion, Wrench, accumulate_penalty_forces,
-};
+use super::{Stepper, check_step_inputs};
+use crate::contact::Contact;
+use crate::contact::penalty::{ContactWorkspace, accumulate_penalty_forces};
 use crate::error::{SolverError, check_non_negative, check_positive};
 use crate::kernel::{self, VERTEX_CHUNK};
+use crate::model::state::State;
 use crate::model::{Model, TimeStepCheck};
-use crate::registry::{Capabilities, Clock, Solver};
-use crate::report::StepReport;
-use crate::state::State;
-use crate::{Stepper, check_step_inputs};
+use crate::rigid::{ObstacleMotion, Wrench};
+use crate::steppers::commit::{Kinematic, StepEnd};
+use crate::steppers::registry::{Capabilities, Clock, Solver};
+use crate::steppers::report::StepReport;
 
 /// Which explicit update. Serde names: `symplectic`, `forward-euler`.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -101,7 +101,7 @@ pub struct ExplicitStepper {
     x_new: Vec<Vec2>,
     v_new: Vec<Vec2>,
     wrenches: Vec<Wrench>,
-    bodies_new: Vec<crate::contact::BodyState>,
+    bodies_new: Vec<crate::rigid::BodyState>,
     contact: ContactWorkspace,
 }
 

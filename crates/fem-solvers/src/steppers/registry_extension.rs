@@ -11,8 +11,13 @@ use fem_core::energy::Energy;
 use fem_core::math::Real;
 use serde::{Deserialize, Serialize};
 
-use crate::registry::{Capabilities, Clock, Solver};
-use crate::{ExplicitParams, ExplicitStepper, Model, SolverError, State, StepReport, Stepper};
+use super::Stepper;
+use super::explicit::{ExplicitParams, ExplicitStepper};
+use super::report::StepReport;
+use crate::error::SolverError;
+use crate::model::Model;
+use crate::model::state::State;
+use crate::steppers::registry::{Capabilities, Clock, Solver};
 
 /// Parameters of [`TwoHalves`].
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -107,27 +112,33 @@ mod extended {
     use fem_core::energy::Energy;
     use fem_core::math::Real;
 
-    use crate::registry::{Capabilities, Solver};
-    use crate::{Model, SolverError, State, StepReport, Stepper};
+    use crate::error::SolverError;
+    use crate::model::Model;
+    use crate::model::state::State;
+    use crate::steppers::Stepper;
+    use crate::steppers::registry::{Capabilities, Solver};
+    use crate::steppers::report::StepReport;
 
-    crate::registry::registry! {
-        Explicit => crate::explicit::ExplicitStepper,
-        Pbd => crate::position_based::PbdStepper,
-        Xpbd => crate::position_based::XpbdStepper,
-        Implicit => crate::implicit::ImplicitStepper,
-        Static => crate::statics::StaticStepper,
-        Vbd => crate::vbd::VbdStepper,
-    Pd => crate::projective::PdStepper,
-    QuasiNewton => crate::quasi_newton::QuasiNewtonStepper,
-        TwoHalves => crate::registry_extension::TwoHalves,
+    crate::steppers::registry::registry! {
+        Explicit => crate::steppers::explicit::ExplicitStepper,
+        Pbd => crate::steppers::position_based::PbdStepper,
+        Xpbd => crate::steppers::position_based::XpbdStepper,
+        Implicit => crate::steppers::implicit::ImplicitStepper,
+        Static => crate::steppers::statics::StaticStepper,
+        Vbd => crate::steppers::vbd::VbdStepper,
+        Pd => crate::steppers::projective::PdStepper,
+        QuasiNewton => crate::steppers::quasi_newton::QuasiNewtonStepper,
+        TwoHalves => crate::steppers::registry_extension::TwoHalves,
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::extended::{SolverKind, SolverParams};
+    use crate::model::Model;
+    use crate::model::state::State;
+    use crate::steppers::Stepper;
     use crate::testing::beam_mesh;
-    use crate::{Model, State, Stepper};
     use fem_core::PlaneModel;
     use fem_core::energy::NeoHookean;
     use fem_core::material::Material;
@@ -148,7 +159,10 @@ mod tests {
 
     #[test]
     fn one_line_adds_the_solver_to_the_names_the_parameters_and_the_steppers() {
-        assert_eq!(SolverKind::ALL.len(), crate::SolverKind::ALL.len() + 1);
+        assert_eq!(
+            SolverKind::ALL.len(),
+            crate::steppers::registry::SolverKind::ALL.len() + 1
+        );
         let kind = *SolverKind::ALL.last().unwrap();
         assert_eq!(kind.name(), "two-halves");
         assert!(!kind.capabilities().implicit);
@@ -188,7 +202,10 @@ mod tests {
     #[test]
     fn the_crates_own_solvers_keep_their_names_and_order() {
         let names: Vec<&str> = SolverKind::ALL.iter().map(|k| k.name()).collect();
-        let own: Vec<&str> = crate::SolverKind::ALL.iter().map(|k| k.name()).collect();
+        let own: Vec<&str> = crate::steppers::registry::SolverKind::ALL
+            .iter()
+            .map(|k| k.name())
+            .collect();
         assert_eq!(&names[..own.len()], &own[..]);
     }
 }

@@ -31,7 +31,7 @@ use fem_core::math::{Mat2, Real, Vec2, vec_index};
 use fem_core::mesh::Mesh;
 
 use crate::error::SolverError;
-use crate::grab::Spring;
+use crate::model::grab::Spring;
 
 /// The Lamé parameters `(mu, lambda)` of `energy`'s tangent at rest.
 pub(crate) fn rest_lame<E: Energy>(energy: &E) -> (Real, Real) {

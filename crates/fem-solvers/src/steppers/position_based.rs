@@ -68,22 +68,24 @@ use fem_core::math::{Real, Vec2, exp};
 use fem_core::mesh::VertexAdjacency;
 use fem_core::par::prelude::*;
 
-use crate::colour::Colouring;
-use crate::commit::{Kinematic, StepEnd};
-use crate::contact::{BodyState, Contact, ContactWorkspace, ObstacleMotion, project_contacts};
+use super::{Stepper, check_step_inputs};
+use crate::contact::Contact;
+use crate::contact::penalty::{ContactWorkspace, project_contacts};
 use crate::error::{
     SolverError, check_count, check_non_negative, check_positive, check_relaxation,
 };
-use crate::grab::Spring;
 use crate::kernel::{
     ELEMENT_CHUNK, Inversion, PackedElement, VERTEX_CHUNK, deformation_gradient, energy_gradients,
 };
-use crate::limits;
 use crate::model::Model;
-use crate::registry::{Capabilities, Clock, Solver};
-use crate::report::StepReport;
-use crate::state::State;
-use crate::{Stepper, check_step_inputs};
+use crate::model::grab::Spring;
+use crate::model::limits;
+use crate::model::state::State;
+use crate::rigid::{BodyState, ObstacleMotion};
+use crate::steppers::colour::Colouring;
+use crate::steppers::commit::{Kinematic, StepEnd};
+use crate::steppers::registry::{Capabilities, Clock, Solver};
+use crate::steppers::report::StepReport;
 
 /// The order in which triangle constraints are projected. Serde names: `gauss-seidel`,
 /// `coloured`, `jacobi`.

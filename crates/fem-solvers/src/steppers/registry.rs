@@ -23,11 +23,11 @@ use std::str::FromStr;
 use fem_core::energy::Energy;
 use fem_core::math::Real;
 
-use crate::Stepper;
+use super::Stepper;
 use crate::error::SolverError;
 use crate::model::Model;
-use crate::report::StepReport;
-use crate::state::State;
+use crate::model::state::State;
+use crate::steppers::report::StepReport;
 
 /// What a state's clock [`State::t`] counts under a solver.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -141,7 +141,7 @@ macro_rules! registry {
 
         impl SolverKind {
             /// Every solver, in table order.
-            pub const ALL: [SolverKind; $crate::registry::count!($($variant)+)] = [$(SolverKind::$variant),+];
+            pub const ALL: [SolverKind; $crate::steppers::registry::count!($($variant)+)] = [$(SolverKind::$variant),+];
 
             /// The name on the command line and in files (`explicit`, `pbd`, ...).
             pub fn name(self) -> &'static str {
@@ -311,14 +311,14 @@ macro_rules! registry {
 pub(crate) use {count, registry};
 
 registry! {
-    Explicit => crate::explicit::ExplicitStepper,
-    Pbd => crate::position_based::PbdStepper,
-    Xpbd => crate::position_based::XpbdStepper,
-    Implicit => crate::implicit::ImplicitStepper,
-    Static => crate::statics::StaticStepper,
-    Vbd => crate::vbd::VbdStepper,
-    Pd => crate::projective::PdStepper,
-    QuasiNewton => crate::quasi_newton::QuasiNewtonStepper,
+    Explicit => crate::steppers::explicit::ExplicitStepper,
+    Pbd => crate::steppers::position_based::PbdStepper,
+    Xpbd => crate::steppers::position_based::XpbdStepper,
+    Implicit => crate::steppers::implicit::ImplicitStepper,
+    Static => crate::steppers::statics::StaticStepper,
+    Vbd => crate::steppers::vbd::VbdStepper,
+    Pd => crate::steppers::projective::PdStepper,
+    QuasiNewton => crate::steppers::quasi_newton::QuasiNewtonStepper,
 }
 
 impl Default for SolverKind {
@@ -340,7 +340,10 @@ impl FromStr for SolverKind {
         SolverKind::ALL
             .into_iter()
             .find(|k| k.name() == s)
-            .ok_or_else(|| SolverError::UnknownSolver(s.to_owned()))
+            .ok_or_else(|| SolverError::UnknownSolver {
+                name: s.to_owned(),
+                expected: solver_names(),
+            })
     }
 }
 

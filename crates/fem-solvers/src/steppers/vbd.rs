@@ -80,22 +80,23 @@ use fem_core::math::{Mat2, Real, Vec2, exp};
 use fem_core::mesh::VertexAdjacency;
 use fem_core::par::prelude::*;
 
-use crate::barrier_contact::{BarrierContact, end_poses, step_targets};
-use crate::colour::VertexColouring;
-use crate::commit::{Kinematic, StepEnd};
-use crate::contact::{BodyState, Contact};
+use super::{Stepper, check_step_inputs};
+use crate::contact::Contact;
+use crate::contact::barrier::{BarrierContact, end_poses, step_targets};
 use crate::error::{SolverError, check_count, check_non_negative, check_positive, check_rho};
-use crate::grab::{Spring, spring_of};
-use crate::implicit::external_load;
 use crate::kernel::{
     ELEMENT_CHUNK, Inversion, PackedElement, corner_gradient, deformation_gradient, pack,
 };
-use crate::limits;
 use crate::model::Model;
-use crate::registry::{Capabilities, Clock, Solver};
-use crate::report::StepReport;
-use crate::state::State;
-use crate::{Stepper, check_step_inputs};
+use crate::model::grab::{Spring, spring_of};
+use crate::model::limits;
+use crate::model::state::State;
+use crate::rigid::BodyState;
+use crate::steppers::colour::VertexColouring;
+use crate::steppers::commit::{Kinematic, StepEnd};
+use crate::steppers::implicit::external_load;
+use crate::steppers::registry::{Capabilities, Clock, Solver};
+use crate::steppers::report::StepReport;
 
 /// Vertices per parallel task of a colour. Fixed, so the split never depends on the thread
 /// count (the updates of one colour are independent anyway).

@@ -34,19 +34,19 @@ use fem_core::assembly::{Scratch, populate_forces};
 use fem_core::energy::Energy;
 use fem_core::math::{Real, Vec2, exp};
 
+use super::{Stepper, check_step_inputs};
 use crate::error::{SolverError, check_at_most, check_count, check_non_negative, check_positive};
-use crate::grab::spring_of;
-use crate::implicit::external_load;
 use crate::kernel::{PackedElement, pack};
-use crate::limits;
 use crate::model::Model;
-use crate::newton::Potential;
-use crate::pd_system::{PdSystem, element_lame};
-use crate::registry::{Capabilities, Clock, Solver};
-use crate::report::StepReport;
-use crate::state::State;
-use crate::vbd::{commit_positions, forbids_inversion, inversion};
-use crate::{Stepper, check_step_inputs};
+use crate::model::grab::spring_of;
+use crate::model::limits;
+use crate::model::state::State;
+use crate::optim::newton::Potential;
+use crate::optim::pd_system::{PdSystem, element_lame};
+use crate::steppers::implicit::external_load;
+use crate::steppers::registry::{Capabilities, Clock, Solver};
+use crate::steppers::report::StepReport;
+use crate::steppers::vbd::{commit_positions, forbids_inversion, inversion};
 
 /// Most `(s, y)` pairs L-BFGS may keep.
 pub const MAX_HISTORY: usize = 100;

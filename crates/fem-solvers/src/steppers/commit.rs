@@ -12,10 +12,10 @@
 use fem_core::energy::Energy;
 use fem_core::math::{Real, Vec2};
 
-use crate::contact::BodyState;
 use crate::error::SolverError;
 use crate::model::Model;
-use crate::state::State;
+use crate::model::state::State;
+use crate::rigid::BodyState;
 
 /// How the kinematic (pinned and prescribed) vertices reach their new positions.
 #[derive(Clone, Copy, Debug)]

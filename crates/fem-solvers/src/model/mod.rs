@@ -11,6 +11,11 @@
 //! boundary condition or obstacle. Each structural change gives the model a new
 //! [`Model::layout`]; a stepper that precomputed something from the old one (a factorisation,
 //! a colouring, the free degrees of freedom) redoes it at its next step.
+//!
+//! Beside the model, this folder holds what it is made of and what every solver reads with it:
+//! the [`state`], boundary conditions ([`bc`]), the drag attachment ([`grab`]), the contact
+//! parameters ([`contact_params`]), the bounds on every count a solver takes ([`limits`]) and
+//! energy [`diagnostics`]. It knows no contact algorithm and no stepper.
 
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -20,13 +25,21 @@ use fem_core::mesh::Mesh;
 use fem_core::simd::Isa;
 use nalgebra::SymmetricEigen;
 
-use crate::bc::{Kinematics, Motion, PrescribedMotion, Region};
-use crate::contact::{ContactParams, Ground, Obstacle, ObstacleMotion};
+pub mod bc;
+pub mod contact_params;
+pub mod diagnostics;
+pub mod grab;
+pub mod limits;
+pub mod state;
+
+use self::bc::{Kinematics, Motion, PrescribedMotion, Region};
+use self::contact_params::ContactParams;
+use self::grab::{ActiveGrab, Grab, GrabModel, Spring};
 use crate::error::{SolverError, check_finite_vec, check_positive};
-use crate::grab::{ActiveGrab, Grab, GrabModel, Spring};
 use crate::kernel::{
     ElementBlock, PackedElement, corner_gradient, deformation_gradient, pack, pack_blocks,
 };
+use crate::rigid::{Ground, Obstacle, ObstacleMotion};
 
 /// A new layout identifier, unique in the process.
 fn fresh_layout() -> u64 {
@@ -332,7 +345,7 @@ impl<E: Energy> Model<E> {
         let overlap = |reason: String| SolverError::Obstacle { index, reason };
         if let Some(v) = vertices
             .iter()
-            .position(|&p| crate::contact::strictly_inside(polygon, p, margin))
+            .position(|&p| crate::rigid::obstacle::strictly_inside(polygon, p, margin))
         {
             return Err(overlap(format!(
                 "overlaps the body at t = 0: vertex {v} at [{}, {}] lies inside it; start it apart from the body",
@@ -341,7 +354,11 @@ impl<E: Energy> Model<E> {
         }
         for (k, &c) in polygon.iter().enumerate() {
             if let Some(t) = self.mesh.triangles().iter().position(|tri| {
-                crate::contact::strictly_inside(&tri.map(|i| vertices[i as usize]), c, margin)
+                crate::rigid::obstacle::strictly_inside(
+                    &tri.map(|i| vertices[i as usize]),
+                    c,
+                    margin,
+                )
             }) {
                 return Err(overlap(format!(
                     "overlaps the body at t = 0: its corner {k} at [{}, {}] lies inside triangle {t}; start it apart from the body",
@@ -594,7 +611,7 @@ impl<E: Energy> Model<E> {
     pub fn set_obstacle_moves(
         &mut self,
         index: usize,
-        moves: &[crate::contact::ObstacleMove],
+        moves: &[crate::rigid::ObstacleMove],
     ) -> Result<(), SolverError> {
         let count = self.obstacles.len();
         let obstacle = self.obstacles.get_mut(index).ok_or_else(|| {

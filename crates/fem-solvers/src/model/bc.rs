@@ -10,6 +10,7 @@
 use fem_core::math::{Real, Vec2};
 
 use crate::error::{SolverError, check_finite_vec};
+use crate::rigid::window_overlap;
 
 /// A set of mesh vertices.
 #[derive(Clone, Debug, PartialEq)]
@@ -131,14 +132,6 @@ impl PrescribedMotion {
     }
 }
 
-/// Length of `[t, t + dt] ∩ [start, end]`.
-#[inline]
-pub(crate) fn window_overlap(t: Real, dt: Real, start: Real, end: Real) -> Real {
-    let a = t.max(start);
-    let b = (t + dt).min(end);
-    (b - a).max(0.0)
-}
-
 /// How one kinematic vertex moves.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) enum Motion {
@@ -229,14 +222,6 @@ impl Kinematics {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn window_overlap_covers_partial_steps() {
-        assert_eq!(window_overlap(0.0, 1.0, 0.25, 0.5), 0.25);
-        assert_eq!(window_overlap(0.4, 0.2, 0.25, 0.5), 0.09999999999999998);
-        assert_eq!(window_overlap(1.0, 1.0, 0.0, 0.5), 0.0);
-        assert_eq!(window_overlap(0.0, 1.0, 0.0, Real::INFINITY), 1.0);
-    }
 
     #[test]
     fn later_assignment_wins_and_list_stays_sorted() {

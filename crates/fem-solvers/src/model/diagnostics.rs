@@ -3,10 +3,10 @@
 use fem_core::energy::Energy;
 use fem_core::math::{Real, Vec2};
 
-use crate::contact::ObstacleMotion;
 use crate::kernel;
 use crate::model::Model;
-use crate::state::State;
+use crate::model::state::State;
+use crate::rigid::ObstacleMotion;
 
 /// Energies of a state, J per unit thickness.
 #[derive(Clone, Copy, Debug, PartialEq)]
