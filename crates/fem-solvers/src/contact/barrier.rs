@@ -4,8 +4,8 @@
 //! cross, so the distance between the soft body and every obstacle stays positive at every
 //! step (not only at sampled times).
 //!
-//! **Pairs.** Three kinds, found by the broad phase ([`crate::broad_phase`]) over the soft
-//! body's boundary:
+//! **Pairs.** Three kinds, found by the broad phase (`broad_phase`) over the soft body's
+//! boundary:
 //! - a soft boundary vertex and the ground (the distance is the height above it);
 //! - a soft boundary vertex and an obstacle's edge;
 //! - an obstacle's corner and a soft boundary edge (so a sharp corner cannot pass between two

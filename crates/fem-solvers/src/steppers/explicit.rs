@@ -8,8 +8,8 @@
 //! - **forward Euler** (Algorithm I as printed, line 9): `x' = x + dt v`, `v' = (v + dt a) decay`.
 //!
 //! Kinematic vertices follow their schedule; dynamic rigid bodies are advanced by the same
-//! scheme under gravity and the penalty reactions ([`crate::contact`]: vertices in obstacles
-//! and obstacle corners in soft boundary edges, recorded in [`Stepper::contacts`]).
+//! scheme under gravity and the penalty reactions ([`crate::contact::penalty`]: vertices in
+//! obstacles and obstacle corners in soft boundary edges, recorded in [`Stepper::contacts`]).
 //!
 //! Blow-up detection: the new positions and velocities are written into the stepper's own
 //! buffers and only swapped into the state when every value is finite; otherwise the step

@@ -57,8 +57,8 @@ pub trait Stepper {
     /// The contacts of the last step, where the stepper last evaluated them (penalty: the
     /// start of the step, where its forces are; projection: the sweeps of the last substep):
     /// where, the normal, the gap (negative: penetration) and the normal force, in a fixed
-    /// order (see [`crate::contact`]). Empty for a stepper without contact and for a model
-    /// without a ground or obstacles.
+    /// order (see [`crate::contact::penalty`]). Empty for a stepper without contact and for a
+    /// model without a ground or obstacles.
     fn contacts(&self) -> &[Contact] {
         &[]
     }

@@ -980,7 +980,8 @@ macro_rules! position_based_stepper {
             }
 
             /// The projection contacts of the last substep: every pair a sweep corrected, with
-            /// its multipliers summed over the sweeps as a force (see [`crate::contact`]).
+            /// its multipliers summed over the sweeps as a force (see
+            /// [`crate::contact::penalty`]).
             fn contacts(&self) -> &[Contact] {
                 &self.engine.contact.records
             }
