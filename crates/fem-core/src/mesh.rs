@@ -301,6 +301,44 @@ impl Mesh {
         })
     }
 
+    /// The same vertices with only the triangles `keep` selects (`keep[t]` for triangle `t`,
+    /// in order), regions kept. Vertices that no kept triangle uses stay in place, unreferenced:
+    /// the elastic part of a body whose other triangles are rigid, still indexed like the whole
+    /// body. Unlike [`Mesh::new`] this checks nothing (the triangles come from a valid mesh).
+    /// Panics when `keep` does not hold one flag per triangle.
+    pub fn restricted(&self, keep: &[bool]) -> Mesh {
+        assert_eq!(keep.len(), self.triangles.len(), "one flag per triangle");
+        let pick = |t: usize| keep[t];
+        let triangles: Vec<[u32; 3]> = (0..self.triangles.len())
+            .filter(|&t| pick(t))
+            .map(|t| self.triangles[t])
+            .collect();
+        let elements = (0..self.triangles.len())
+            .filter(|&t| pick(t))
+            .map(|t| self.elements[t])
+            .collect();
+        let regions = if self.regions.is_empty() {
+            Vec::new()
+        } else {
+            (0..self.triangles.len())
+                .filter(|&t| pick(t))
+                .map(|t| self.regions[t])
+                .collect()
+        };
+        let n = self.vertices.len();
+        let adjacency = VertexAdjacency::build(n, &triangles);
+        let plan = ScatterPlan::new(n, &triangles, &adjacency);
+        Mesh {
+            vertices: self.vertices.clone(),
+            triangles,
+            elements,
+            adjacency,
+            plan,
+            regions,
+            region_names: self.region_names.clone(),
+        }
+    }
+
     /// Tag the triangles with named regions (tissues: a bone inside soft tissue), as a mesh
     /// file or the mesh pipeline carries them: `tags[t]` is the region of triangle `t`, an
     /// index into `names`. Errors (naming the first bad entry) unless there is one tag per

@@ -55,9 +55,9 @@ impl std::error::Error for SceneError {}
 impl From<SolverError> for SceneError {
     fn from(e: SolverError) -> Self {
         match e {
-            SolverError::NonFinite { .. } | SolverError::NonFiniteBody { .. } => {
-                SceneError::BlowUp(e.to_string())
-            }
+            SolverError::NonFinite { .. }
+            | SolverError::NonFiniteBody { .. }
+            | SolverError::NonFiniteRigid { .. } => SceneError::BlowUp(e.to_string()),
             _ => SceneError::Solver(e.to_string()),
         }
     }

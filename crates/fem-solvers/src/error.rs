@@ -129,6 +129,14 @@ pub enum SolverError {
         /// Obstacle index.
         body: usize,
     },
+    /// A rigid region's body became NaN or infinite.
+    #[error("step {step}: rigid body {body} (of the rigid regions) became non-finite")]
+    NonFiniteRigid {
+        /// Index of the failed step.
+        step: u64,
+        /// Rigid body index ([`Model::rigid_bodies`](crate::Model::rigid_bodies)).
+        body: usize,
+    },
     /// The mesh was rejected ([`Mesh::new`](fem_core::mesh::Mesh::new)); `?` converts it.
     #[error("mesh: {0}")]
     Mesh(#[from] fem_core::mesh::MeshError),

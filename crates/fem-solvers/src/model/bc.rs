@@ -142,6 +142,9 @@ pub(crate) enum Motion {
     /// Held by a pinning grab: carried to this goal position by the end of the step, along a
     /// straight line at constant speed (see [`crate::grab`]).
     Held(Vec2),
+    /// Slaved to the free rigid body with this index: the stepper moves the body, and the
+    /// step's end places the vertex on it ([`crate::rigid::body`]).
+    Rigid(u32),
 }
 
 /// The kinematic vertices of a model, resolved to indices.
@@ -181,7 +184,8 @@ impl Kinematics {
     #[inline]
     pub(crate) fn velocity(&self, k: usize, x_old: Vec2, t: Real, dt: Real, until: Real) -> Vec2 {
         match self.motion[k] {
-            Motion::Pinned => Vec2::zeros(),
+            // A slaved vertex's velocity is the body's, which the stepper knows.
+            Motion::Pinned | Motion::Rigid(_) => Vec2::zeros(),
             Motion::Scheduled(m) => self.motions[m as usize].mean_velocity(t, dt),
             Motion::Held(goal) => {
                 let left = until - t;
@@ -209,6 +213,10 @@ impl Kinematics {
     ) {
         for (k, &v) in self.vertices.iter().enumerate() {
             let v = v as usize;
+            if let Motion::Rigid(_) = self.motion[k] {
+                // Placed on its body by the step's end.
+                continue;
+            }
             let vel = self.velocity(k, x_old[v], t, dt, until);
             x_new[v] = match self.motion[k] {
                 Motion::Held(goal) if until - t <= dt * (1.0 + 1e-9) => goal,

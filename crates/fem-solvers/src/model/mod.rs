@@ -39,7 +39,8 @@ use crate::error::{SolverError, check_finite_vec, check_positive};
 use crate::kernel::{
     ElementBlock, PackedElement, corner_gradient, deformation_gradient, pack, pack_blocks,
 };
-use crate::rigid::{Ground, Obstacle, ObstacleMotion};
+use crate::rigid::body::build_bodies;
+use crate::rigid::{BodyMotion, Ground, Obstacle, ObstacleMotion, RigidBody};
 
 /// A new layout identifier, unique in the process.
 fn fresh_layout() -> u64 {
@@ -83,6 +84,15 @@ pub struct Model<E: Energy> {
     boundary: Vec<[u32; 2]>,
     /// The vertices of the boundary edges, sorted.
     boundary_vertices: Vec<u32>,
+    /// The rigid regions: `(region tag, density kg/m^3)`, in the order they were declared.
+    rigid_regions: Vec<(u32, Real)>,
+    /// The rigid bodies of the rigid regions (see [`crate::rigid::body`]).
+    bodies: Vec<RigidBody>,
+    /// The body each vertex is slaved to (`u32::MAX`: none).
+    slave: Vec<u32>,
+    /// With rigid regions: the mesh of the deformable triangles only (every vertex kept) and
+    /// their energies; `None` when every triangle is deformable.
+    elastic: Option<(Mesh, ElementEnergies<E>)>,
 }
 
 impl<E: Energy> Model<E> {
@@ -166,6 +176,10 @@ impl<E: Energy> Model<E> {
             obstacles: Vec::new(),
             contact: ContactParams::default(),
             modulus,
+            rigid_regions: Vec::new(),
+            bodies: Vec::new(),
+            slave: Vec::new(),
+            elastic: None,
         })
     }
 
@@ -200,6 +214,62 @@ impl<E: Energy> Model<E> {
     pub fn set_standard_gravity(&mut self) -> &mut Self {
         self.gravity = Vec2::new(0.0, -STANDARD_GRAVITY);
         self
+    }
+
+    /// Make the triangles of region `region` (a tag of [`Model::energies`]) rigid, with density
+    /// `density` (kg/m^3): each connected component of the rigid triangles becomes one rigid
+    /// body that carries the vertices of its triangles (see [`crate::rigid::body`]). Its
+    /// triangles leave the elastic mesh ([`Model::elastic_mesh`]): they carry no energy and no
+    /// stress. Components of different rigid regions that share a vertex are one body. Fails
+    /// when the region does not exist, the density is not a finite number > 0, or no
+    /// deformable triangle would be left. Changes the layout.
+    pub fn make_rigid(&mut self, region: usize, density: Real) -> Result<&mut Self, SolverError> {
+        let field = format!("regions[{region}].rigid");
+        if region >= self.energies.n_regions() {
+            return Err(SolverError::invalid(
+                field,
+                region,
+                format!(
+                    "no such region (the model has {})",
+                    self.energies.n_regions()
+                ),
+            ));
+        }
+        check_positive(&format!("regions[{region}].density"), density)?;
+        let tag = region as u32;
+        match self.rigid_regions.iter_mut().find(|(t, _)| *t == tag) {
+            Some(r) => r.1 = density,
+            None => self.rigid_regions.push((tag, density)),
+        }
+        let n = self.mesh.n_triangles();
+        let tags: Vec<u32> = (0..n).map(|t| self.energies.tag(t)).collect();
+        let density_of = |t: usize| {
+            (self.rigid_regions.iter())
+                .find(|(r, _)| *r == tags[t])
+                .map_or(0.0, |r| r.1)
+        };
+        let rigid: Vec<bool> = (0..n).map(|t| density_of(t) > 0.0).collect();
+        if rigid.iter().all(|&r| r) {
+            self.rigid_regions.retain(|(t, _)| *t != tag);
+            return Err(SolverError::invalid(
+                field,
+                true,
+                "would make every triangle rigid: a body needs deformable triangles",
+            ));
+        }
+        let (bodies, slave) = build_bodies(&self.mesh, &rigid, density_of, &tags, &self.masses);
+        let keep: Vec<bool> = rigid.iter().map(|r| !r).collect();
+        let elastic_mesh = self.mesh.restricted(&keep);
+        let elastic_tags: Vec<u32> = (0..n).filter(|&t| keep[t]).map(|t| tags[t]).collect();
+        let energies = ElementEnergies::new(self.energies.energies().to_vec(), elastic_tags)
+            .map_err(|e| SolverError::invalid(field.clone(), true, e.to_string()))?;
+        self.elements = pack(&elastic_mesh, energies.tags());
+        self.blocks = pack_blocks(&self.elements);
+        self.elastic = Some((elastic_mesh, energies));
+        self.bodies = bodies;
+        self.slave = slave;
+        self.refresh_kinematics();
+        Ok(self)
     }
 
     /// Pin the vertices of `region` (zero velocity for the whole run).
@@ -397,6 +467,9 @@ impl<E: Energy> Model<E> {
         for v in self.base.vertices() {
             kinematic[v] = true;
         }
+        for (k, &b) in self.slave.iter().enumerate() {
+            kinematic[k] |= b != u32::MAX;
+        }
         self.grab = Some(ActiveGrab::new(grab, x, &kinematic)?);
         self.refresh_kinematics();
         Ok(self)
@@ -467,14 +540,14 @@ impl<E: Energy> Model<E> {
                 f + (s.goal - x[s.vertex as usize]) * s.stiffness
             }),
             GrabModel::Pin => {
-                let adj = self.mesh.adjacency();
+                let adj = self.elastic_mesh().adjacency();
                 let mut f = Vec2::zeros();
                 for a in &grab.anchors {
                     let v = a.vertex as usize;
                     for &(t, corner) in adj.of(v) {
                         let el = &self.elements[t as usize];
                         let p = self
-                            .energies
+                            .elastic_energies()
                             .energy_of(t as usize)
                             .pk1(&deformation_gradient(el, x));
                         f += (p * corner_gradient(el, corner)) * el.area;
@@ -509,6 +582,33 @@ impl<E: Energy> Model<E> {
     /// Effective kinematics from the boundary conditions and the grab; new layout.
     fn refresh_kinematics(&mut self) {
         self.kinematics = self.base.clone();
+        // A rigid body follows its kinematic vertices: pinned when one is pinned, else moved
+        // by the prescribed motion of the first scheduled one; all its vertices then move so.
+        for (b, body) in self.bodies.iter_mut().enumerate() {
+            let mut motion = BodyMotion::Free;
+            for &v in &body.vertices {
+                if let Ok(k) = self.base.vertices.binary_search(&v) {
+                    match self.base.motion[k] {
+                        Motion::Pinned => {
+                            motion = BodyMotion::Pinned;
+                            break;
+                        }
+                        Motion::Scheduled(m) if motion == BodyMotion::Free => {
+                            motion = BodyMotion::Scheduled(m);
+                        }
+                        _ => {}
+                    }
+                }
+            }
+            body.motion = motion;
+            let list: Vec<usize> = body.vertices.iter().map(|&v| v as usize).collect();
+            let m = match motion {
+                BodyMotion::Free => Motion::Rigid(b as u32),
+                BodyMotion::Pinned => Motion::Pinned,
+                BodyMotion::Scheduled(m) => Motion::Scheduled(m),
+            };
+            self.kinematics.assign(&list, m);
+        }
         if let Some(g) = &self.grab
             && g.model == GrabModel::Pin
         {
@@ -563,6 +663,45 @@ impl<E: Energy> Model<E> {
     /// Lumped vertex masses, kg.
     pub fn masses(&self) -> &[Real] {
         &self.masses
+    }
+
+    /// The rigid bodies of the rigid regions ([`Model::make_rigid`]), in order of their first
+    /// triangle; their poses are [`State::rigid`](crate::State::rigid).
+    pub fn rigid_bodies(&self) -> &[RigidBody] {
+        &self.bodies
+    }
+
+    /// The rigid body vertex `v` is slaved to, if any.
+    #[inline]
+    pub fn rigid_body_of(&self, v: usize) -> Option<usize> {
+        match self.slave.get(v) {
+            Some(&b) if b != u32::MAX => Some(b as usize),
+            _ => None,
+        }
+    }
+
+    /// The rigid regions: `(region tag, density)` in the order they were declared.
+    pub fn rigid_regions(&self) -> &[(u32, Real)] {
+        &self.rigid_regions
+    }
+
+    /// Whether triangle `t` of [`Model::mesh`] belongs to a rigid region.
+    pub fn is_rigid_triangle(&self, t: usize) -> bool {
+        let tag = self.energies.tag(t);
+        self.rigid_regions.iter().any(|(r, _)| *r == tag)
+    }
+
+    /// The mesh of the deformable triangles, with every vertex of [`Model::mesh`] (those of
+    /// rigid regions alone stay unreferenced): the mesh every elastic term is assembled on. It
+    /// is the whole mesh when no region is rigid.
+    pub fn elastic_mesh(&self) -> &Mesh {
+        self.elastic.as_ref().map_or(&self.mesh, |e| &e.0)
+    }
+
+    /// The energies of [`Model::elastic_mesh`]'s triangles (one per region, as
+    /// [`Model::energies`], tagged per deformable triangle).
+    pub fn elastic_energies(&self) -> &ElementEnergies<E> {
+        self.elastic.as_ref().map_or(&self.energies, |e| &e.1)
     }
 
     /// Inverse masses, 1/kg; zero for kinematic (pinned or prescribed) vertices.
@@ -669,7 +808,7 @@ impl<E: Energy> Model<E> {
             .map(|e| e.dpk1(&Mat2::identity()))
             .collect();
         let mut lambda_max: Real = 0.0;
-        for (tri, el) in self.mesh.elements().iter().zip(&self.elements) {
+        for (tri, el) in self.elastic_mesh().elements().iter().zip(&self.elements) {
             let k = tri.stiffness(&dpdf[el.region as usize]);
             let mut scale = [0.0; 6];
             for (a, &i) in el.idx.iter().enumerate() {

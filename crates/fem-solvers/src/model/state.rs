@@ -16,6 +16,10 @@ pub struct State {
     pub v: Vec<Vec2>,
     /// One pose per obstacle of the model (static and kinematic ones too), in obstacle order.
     pub bodies: Vec<BodyState>,
+    /// One pose per rigid body of the rigid regions
+    /// ([`Model::rigid_bodies`](crate::Model::rigid_bodies)), in their order; its vertices'
+    /// positions follow it.
+    pub rigid: Vec<BodyState>,
     /// The clock ([`Clock`](crate::Clock)): time, s; for the static solver the load factor
     /// (0 at rest, 1 under the full load).
     pub t: Real,
@@ -30,24 +34,30 @@ impl State {
             x: model.mesh().vertices().to_vec(),
             v: vec![Vec2::zeros(); model.mesh().n_vertices()],
             bodies: model.obstacles().iter().map(BodyState::initial).collect(),
+            rigid: (model.rigid_bodies().iter())
+                .map(|b| b.initial_state())
+                .collect(),
             t: 0.0,
             step: 0,
         }
     }
 
     /// A state with the given positions and velocities at `t = 0` (bodies at rest at their
-    /// initial poses). Fails when the lengths do not match the model or a value is not finite.
+    /// initial poses; the vertices of rigid regions are placed on their bodies). Fails when the lengths do not match the model or a value is not finite.
     pub fn new<E: Energy>(
         model: &Model<E>,
         x: Vec<Vec2>,
         v: Vec<Vec2>,
     ) -> Result<Self, SolverError> {
-        let s = State {
+        let mut s = State {
             x,
             v,
             ..State::at_rest(model)
         };
         s.check_matches(model)?;
+        for (body, b) in model.rigid_bodies().iter().zip(&s.rigid) {
+            body.place(b, &mut s.x, &mut s.v);
+        }
         for (name, data) in [("x", &s.x), ("v", &s.v)] {
             if let Some(i) = data
                 .iter()
@@ -85,7 +95,7 @@ impl State {
             eat(p.x.to_bits());
             eat(p.y.to_bits());
         }
-        for b in &self.bodies {
+        for b in self.bodies.iter().chain(&self.rigid) {
             for r in [
                 b.position.x,
                 b.position.y,
@@ -119,6 +129,13 @@ impl State {
                 what: "bodies",
                 got: self.bodies.len(),
                 expected: model.obstacles().len(),
+            });
+        }
+        if self.rigid.len() != model.rigid_bodies().len() {
+            return Err(SolverError::StateMismatch {
+                what: "rigid bodies",
+                got: self.rigid.len(),
+                expected: model.rigid_bodies().len(),
             });
         }
         Ok(())

@@ -9,13 +9,17 @@
 //! `advance_kinematic`), a dynamic one is integrated by the stepper that pushes it (penalty
 //! forces, projection impulses or barrier contact, see [`crate::contact`]).
 //!
-//! This module knows nothing of the soft body or its mesh; it answers the polygon queries
+//! [`body`] holds the rigid regions: bones inside the soft body, whose vertices follow them.
+//!
+//! Apart from [`body`], this module knows nothing of the soft body or its mesh; it answers the polygon queries
 //! (inside, nearest boundary point, penetration depth) that contact detection asks.
 
 use fem_core::math::{Real, Vec2, sin_cos};
 
+pub mod body;
 pub mod obstacle;
 
+pub use body::{BodyMotion, RigidBody};
 pub use obstacle::{Ground, Obstacle, ObstacleMotion, ObstacleMove, first_crossing};
 
 /// Pose and velocity of a rigid body (an obstacle's, today): the centroid's position and

@@ -44,6 +44,10 @@ pub(crate) struct StepEnd<'a> {
     pub v: &'a mut Vec<Vec2>,
     /// New rigid-body poses, when the stepper advances obstacles.
     pub bodies: Option<&'a mut Vec<BodyState>>,
+    /// New poses of the rigid regions' bodies, when the model has free ones (the entries of
+    /// pinned and scheduled bodies are ignored: their poses follow their vertices). The
+    /// bodies' vertices are placed on them before the finite check.
+    pub rigid: Option<&'a mut Vec<BodyState>>,
     /// The stepper has proven every new vertex value finite (a fast running check), so the
     /// per-vertex scan can be skipped; `false` always scans.
     pub known_finite: bool,
@@ -72,6 +76,26 @@ impl StepEnd<'_> {
                 .kinematics()
                 .apply(t, dt, until, &state.x, self.x, self.v);
         }
+        if let Some(rigid) = &self.rigid {
+            for (body, b) in model.rigid_bodies().iter().zip(rigid.iter()) {
+                if body.is_free() {
+                    body.place(b, self.x, self.v);
+                }
+            }
+            if let Some(k) = (model.rigid_bodies().iter().zip(rigid.iter()))
+                .position(|(body, b)| body.is_free() && !b.is_finite())
+            {
+                return Err(SolverError::NonFiniteRigid {
+                    step: state.step,
+                    body: k,
+                });
+            }
+        } else {
+            debug_assert!(
+                model.rigid_bodies().iter().all(|b| !b.is_free()),
+                "a stepper without rigid poses ran a model with free rigid bodies"
+            );
+        }
         if !self.known_finite {
             check_finite(
                 state.step,
@@ -95,6 +119,22 @@ impl StepEnd<'_> {
         std::mem::swap(&mut state.v, self.v);
         if let Some(bodies) = self.bodies {
             std::mem::swap(&mut state.bodies, bodies);
+        }
+        for (k, body) in model.rigid_bodies().iter().enumerate() {
+            if body.is_free() {
+                if let Some(rigid) = &self.rigid {
+                    state.rigid[k] = rigid[k];
+                }
+            } else {
+                // Pinned or scheduled: the body translates with its vertices.
+                let (v0, r0) = (body.vertices[0] as usize, body.offsets[0]);
+                state.rigid[k] = BodyState {
+                    position: state.x[v0] - r0,
+                    angle: 0.0,
+                    velocity: state.v[v0],
+                    angular_velocity: 0.0,
+                };
+            }
         }
         state.t = self.t_end;
         if self.count_step {

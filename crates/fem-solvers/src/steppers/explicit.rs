@@ -11,6 +11,15 @@
 //! scheme under gravity and the penalty reactions ([`crate::contact::penalty`]: vertices in
 //! obstacles and obstacle corners in soft boundary edges, recorded in [`Stepper::contacts`]).
 //!
+//! Rigid regions ([`crate::rigid::body`]): the elastic forces come from the deformable
+//! triangles only; the forces on a free body's vertices (elastic, external, grab, contact)
+//! sum to its force and torque about its centroid, and the body takes the same step as the
+//! vertices (its velocities damped alike), [`BodyState::advance`](crate::rigid::BodyState::advance);
+//! the step's end places its vertices on it. Linear and angular momentum are conserved to
+//! round-off: the forces of each element sum to zero, and so do their torques. The stability
+//! guard ([`Model::check_time_step`]) bounds the deformable elements' frequencies, a slaved
+//! vertex counted with its lumped mass in its elements.
+//!
 //! Blow-up detection: the new positions and velocities are written into the stepper's own
 //! buffers and only swapped into the state when every value is finite; otherwise the step
 //! returns [`SolverError::NonFinite`] naming the step and the first bad vertex, and the state is
@@ -102,6 +111,7 @@ pub struct ExplicitStepper {
     v_new: Vec<Vec2>,
     wrenches: Vec<Wrench>,
     bodies_new: Vec<crate::rigid::BodyState>,
+    rigid_new: Vec<crate::rigid::BodyState>,
     contact: ContactWorkspace,
 }
 
@@ -122,6 +132,7 @@ impl ExplicitStepper {
             v_new: vec![Vec2::zeros(); n],
             wrenches: vec![Wrench::default(); model.obstacles().len()],
             bodies_new: Vec::new(),
+            rigid_new: Vec::new(),
             contact: ContactWorkspace::default(),
         })
     }
@@ -166,9 +177,9 @@ impl Stepper for ExplicitStepper {
         let (dt, t) = (self.params.dt, state.t);
 
         let inv = kernel::forces(
-            model.energies(),
+            model.elastic_energies(),
             &model.blocks,
-            model.mesh(),
+            model.elastic_mesh(),
             &state.x,
             &mut self.f,
             &mut self.slots,
@@ -213,6 +224,7 @@ impl Stepper for ExplicitStepper {
             &mut self.x_new,
             &mut self.v_new,
         );
+        let symplectic = self.params.scheme == ExplicitScheme::SymplecticEuler;
         self.bodies_new.clone_from(&state.bodies);
         for (o, (obs, body)) in model
             .obstacles()
@@ -224,19 +236,35 @@ impl Stepper for ExplicitStepper {
                 ObstacleMotion::Static => {}
                 ObstacleMotion::Kinematic { .. } => obs.advance_kinematic(body, t, dt),
                 ObstacleMotion::Dynamic { .. } => {
-                    let (im, ii) = obs.inverse_mass();
                     let w = self.wrenches[o];
-                    let v_old = body.velocity;
-                    let om_old = body.angular_velocity;
-                    body.velocity += (w.force * im + model.gravity()) * dt;
-                    body.angular_velocity += w.torque * ii * dt;
-                    let (v_used, om_used) = match self.params.scheme {
-                        ExplicitScheme::SymplecticEuler => (body.velocity, body.angular_velocity),
-                        ExplicitScheme::ForwardEuler => (v_old, om_old),
-                    };
-                    body.position += v_used * dt;
-                    body.angle += om_used * dt;
+                    body.advance(
+                        obs.inverse_mass(),
+                        w.force,
+                        w.torque,
+                        model.gravity(),
+                        dt,
+                        1.0,
+                        symplectic,
+                    );
                 }
+            }
+        }
+        // Rigid regions: the nodal forces on a body's vertices (elastic, external, grab and
+        // contact; gravity acts on its mass) give its wrench, and the body takes the same
+        // step as the vertices, damping included.
+        self.rigid_new.clone_from(&state.rigid);
+        for (body, b) in model.rigid_bodies().iter().zip(self.rigid_new.iter_mut()) {
+            if body.is_free() {
+                let (force, torque) = body.wrench(b, &state.x, &self.f);
+                b.advance(
+                    body.inverse_mass(),
+                    force,
+                    torque,
+                    model.gravity(),
+                    dt,
+                    self.decay,
+                    symplectic,
+                );
             }
         }
         StepEnd {
@@ -248,6 +276,7 @@ impl Stepper for ExplicitStepper {
             x: &mut self.x_new,
             v: &mut self.v_new,
             bodies: Some(&mut self.bodies_new),
+            rigid: Some(&mut self.rigid_new),
             known_finite,
             inverted: inv.inverted,
             min_det_f: inv.min_det_f,
@@ -272,6 +301,7 @@ impl Solver for ExplicitStepper {
         summary: "explicit FEM (paper Algorithm I): symplectic Euler (or the printed forward Euler) on the elastic forces",
         paper: true,
         contact: true,
+        rigid_regions: true,
         implicit: false,
         iterations: false,
         substeps: false,

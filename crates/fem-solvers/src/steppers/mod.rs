@@ -79,3 +79,28 @@ pub(crate) fn check_step_inputs<E: Energy>(
     }
     state.check_matches(model)
 }
+
+/// Refuse a model with a free rigid body, for a solver that does not move rigid regions
+/// (`rigid_regions: false` in its capabilities): one line naming the solver and the solvers
+/// that do.
+pub(crate) fn refuse_free_rigid_bodies<E: Energy>(
+    model: &Model<E>,
+    solver: &str,
+) -> Result<(), SolverError> {
+    let free = model.rigid_bodies().iter().filter(|b| b.is_free()).count();
+    if free == 0 {
+        return Ok(());
+    }
+    let supported: Vec<&str> = (registry::SolverKind::ALL.iter())
+        .filter(|k| k.capabilities().rigid_regions)
+        .map(|k| k.name())
+        .collect();
+    Err(SolverError::invalid(
+        "solver",
+        solver,
+        format!(
+            "does not move rigid regions, and the model has {free} free rigid bodies: use {}, or pin the bodies, or make the regions elastic (rigid = false)",
+            supported.join(", ")
+        ),
+    ))
+}

@@ -59,6 +59,10 @@ pub struct Capabilities {
     pub paper: bool,
     /// Handles a ground and rigid obstacles.
     pub contact: bool,
+    /// Moves free rigid regions (bones, [`crate::rigid::body`]); a solver without it refuses
+    /// a model with a free rigid body when it is built (pinned and scheduled bodies are
+    /// kinematic vertices to every solver).
+    pub rigid_regions: bool,
     /// Implicit in time.
     pub implicit: bool,
     /// Has an iteration-count parameter `iterations`.
@@ -217,11 +221,15 @@ macro_rules! registry {
                 }
             }
 
-            /// Validate (fields named after the solver) and build the stepper for `model`.
+            /// Validate (fields named after the solver) and build the stepper for `model`. A
+            /// solver that does not move rigid regions refuses a model with a free rigid body.
             pub fn build<E: Energy>(&self, model: &Model<E>) -> Result<AnyStepper, SolverError> {
                 self.validate()?;
                 Ok(match self {
                     $(SolverParams::$variant(p) => {
+                        if !<$ty as Solver>::CAPABILITIES.rigid_regions {
+                            super::refuse_free_rigid_bodies(model, <$ty as Solver>::NAME)?;
+                        }
                         AnyStepper::$variant(Box::new(<$ty as Solver>::build(model, p)?))
                     })+
                 })
@@ -370,18 +378,19 @@ impl<'de> serde::Deserialize<'de> for SolverKind {
 pub fn capability_table() -> String {
     let yes = |b: bool| if b { "yes" } else { "no" };
     let mut out = String::from(
-        "| solver | summary | paper | contact | implicit | iterations | substeps | factorisation | deterministic | clock | converges to |\n\
-         |---|---|---|---|---|---|---|---|---|---|---|\n",
+        "| solver | summary | paper | contact | rigid regions | implicit | iterations | substeps | factorisation | deterministic | clock | converges to |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for kind in SolverKind::ALL {
         let c = kind.capabilities();
         let _ = writeln!(
             out,
-            "| `{}` | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            "| `{}` | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
             kind.name(),
             c.summary,
             yes(c.paper),
             yes(c.contact),
+            yes(c.rigid_regions),
             yes(c.implicit),
             yes(c.iterations),
             yes(c.substeps),

@@ -71,6 +71,7 @@ impl Solver for TwoHalves {
         summary: "two explicit steps of dt / 2 per step (a solver added in a test)",
         paper: false,
         contact: true,
+        rigid_regions: false,
         implicit: false,
         iterations: false,
         substeps: false,

@@ -156,7 +156,7 @@ impl StaticStepper {
         let mut displacement = Vec::with_capacity(kinematic.len());
         for k in 0..kinematic.len() {
             let u = match kin.motion[k] {
-                Motion::Pinned | Motion::Held(_) => Vec2::zeros(),
+                Motion::Pinned | Motion::Held(_) | Motion::Rigid(_) => Vec2::zeros(),
                 Motion::Scheduled(m) => {
                     let motion = &kin.motions[m as usize];
                     if motion.velocity == Vec2::zeros() {
@@ -412,6 +412,7 @@ impl Stepper for StaticStepper {
                         x: &mut self.x_new,
                         v: &mut self.v_new,
                         bodies: self.contact.is_some().then_some(&mut self.bodies_new),
+                        rigid: None,
                         known_finite: false,
                         inverted: r.inverted,
                         min_det_f: r.min_det_f,
@@ -473,6 +474,7 @@ impl Solver for StaticStepper {
         summary: "quasi-static equilibrium (no inertia): Newton per load increment, halved on failure, sparse Cholesky",
         paper: false,
         contact: true,
+        rigid_regions: false,
         implicit: true,
         iterations: false,
         substeps: false,

@@ -19,5 +19,6 @@ mod projective;
 mod quasi_newton;
 mod regions;
 mod registry;
+mod rigid;
 mod statics;
 mod vbd;
