@@ -11,7 +11,9 @@
 //! - `frames.jsonl` (unless `output.frames = false`): one JSON object per frame with the
 //!   positions (`[x0, y0, x1, y1, ...]`), the obstacle polygons, the per-element von Mises
 //!   stress, the contacts and the contact pressure of the loaded boundary vertices
-//!   (`[[vertex, pressure_Pa], ...]`), for renderers;
+//!   (`[[vertex, pressure_Pa], ...]`), and with rigid regions `rigid`: per rigid body its
+//!   `position`, `angle`, `velocity`, `angular_velocity` and the `force` and `torque` the soft
+//!   tissue puts on it, for renderers;
 //! - `mesh.json`: the rest mesh (mesh JSON contract);
 //! - `stress.json`: the last frame's von Mises stress per element and per vertex;
 //! - `scene.toml`: the scene as run, overrides applied (a relative mesh path written absolute,
@@ -21,7 +23,10 @@
 //!   `det_F`; for a body with `[[regions]]` the integer cell data `region`, the material
 //!   region of each element, with the regions' names in the field data `region_names`; for a
 //!   mesh that carries regions (the built-in body's bones) `mesh_region` and
-//!   `mesh_region_names` likewise; a homogeneous body's files have none of them).
+//!   `mesh_region_names` likewise; with rigid regions the integer cell data `rigid_body` (the
+//!   body of each element plus one, 0 for soft tissue) and the field data `rigid_bodies`, one
+//!   line per body with its pose, velocity, force and torque; a homogeneous body's files
+//!   have none of them).
 //!
 //! The summary is written last: its presence says the other files are complete.
 
@@ -306,7 +311,29 @@ impl FrameSink for FramesJsonl {
             let sep = if k == 0 { "" } else { "," };
             let _ = write!(w, "{sep}[{v},{}]", json_number(p[v as usize]));
         }
-        w.push_str("]}\n");
+        w.push(']');
+        if !f.rigid.is_empty() {
+            w.push_str(",\"rigid\":[");
+            for (k, b) in f.rigid.iter().enumerate() {
+                let sep = if k == 0 { "" } else { "," };
+                let n = json_number;
+                let _ = write!(
+                    w,
+                    "{sep}{{\"position\":[{},{}],\"angle\":{},\"velocity\":[{},{}],\"angular_velocity\":{},\"force\":[{},{}],\"torque\":{}}}",
+                    n(b.position[0]),
+                    n(b.position[1]),
+                    n(b.angle),
+                    n(b.velocity[0]),
+                    n(b.velocity[1]),
+                    n(b.angular_velocity),
+                    n(b.force[0]),
+                    n(b.force[1]),
+                    n(b.torque)
+                );
+            }
+            w.push(']');
+        }
+        w.push_str("}\n");
         self.file
             .write_all(w.as_bytes())
             .map_err(|e| SceneError::Io(format!("{}: {e}", self.tmp.display())))
@@ -328,6 +355,8 @@ struct VtkSink {
     det_f: Vec<f64>,
     von_mises: Vec<f64>,
     pressure: Vec<f64>,
+    /// One line per rigid body (field data `rigid_bodies`).
+    rigid_lines: Vec<String>,
 }
 
 impl VtkSink {
@@ -351,6 +380,7 @@ impl VtkSink {
             det_f: Vec::new(),
             von_mises: Vec::new(),
             pressure: Vec::new(),
+            rigid_lines: Vec::new(),
         })
     }
 
@@ -441,6 +471,29 @@ impl FrameSink for VtkSink {
         if let Some((tags, names)) = &self.mesh_region {
             frame.cell_data.push(("mesh_region", DataArray::Tags(tags)));
             frame.field_data.push(("mesh_region_names", names));
+        }
+        // Rigid bodies: which triangles each one is (`rigid_body`, its index plus one, 0 for
+        // soft tissue) and, per body, a line with its pose, velocity and the tissue's load.
+        self.rigid_lines.clear();
+        for (k, b) in f.rigid.iter().enumerate() {
+            self.rigid_lines.push(format!(
+                "body {k} position {} {} angle {} velocity {} {} angular_velocity {} force {} {} torque {}",
+                b.position[0],
+                b.position[1],
+                b.angle,
+                b.velocity[0],
+                b.velocity[1],
+                b.angular_velocity,
+                b.force[0],
+                b.force[1],
+                b.torque
+            ));
+        }
+        if !f.rigid_tags.is_empty() {
+            frame
+                .cell_data
+                .push(("rigid_body", DataArray::Tags(f.rigid_tags)));
+            frame.field_data.push(("rigid_bodies", &self.rigid_lines));
         }
         self.writer
             .add(f.time, &frame)

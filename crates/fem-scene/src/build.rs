@@ -261,6 +261,8 @@ pub struct RegionMaterial {
     /// Density, kg/m^3 (a base material given by its total mass gets the density that
     /// makes the body weigh it).
     pub density: Real,
+    /// Whether the region is rigid (`[[regions]]` `rigid = true`; the base never is).
+    pub rigid: bool,
 }
 
 /// The body's materials: region 0 is `[material]`, region `k` the `k`-th `[[regions]]` entry.
@@ -368,12 +370,14 @@ pub fn material_regions(scene: &LoadedScene, mesh: &Mesh) -> Result<MaterialRegi
         youngs_modulus: m.youngs_modulus,
         poisson_ratio: m.poisson_ratio,
         density: base_density,
+        rigid: false,
     }];
     materials.extend(s.regions.iter().map(|r| RegionMaterial {
         name: r.name.clone(),
         youngs_modulus: r.youngs_modulus.unwrap_or(m.youngs_modulus),
         poisson_ratio: r.poisson_ratio.unwrap_or(m.poisson_ratio),
         density: r.density.unwrap_or(base_density),
+        rigid: r.rigid,
     }));
     Ok(MaterialRegions { materials, tags })
 }
@@ -442,7 +446,19 @@ fn build_unloaded_model<E: Energy>(
             .map_err(|e| SceneError::Scene(format!("{}: {e}", scene.origin)))?;
         let energies = ElementEnergies::new(energies, regions.tags)
             .map_err(|e| SceneError::Scene(format!("{}: regions: {e}", scene.origin)))?;
-        Model::with_regions(mesh, energies, masses).map_err(&err)?
+        let mut model = Model::with_regions(mesh, energies, masses).map_err(&err)?;
+        for (k, r) in regions.materials.iter().enumerate().skip(1) {
+            if r.rigid {
+                model.make_rigid(k, r.density).map_err(|e| {
+                    let rule = match e {
+                        SolverError::InvalidParameter { rule, .. } => rule,
+                        other => other.to_string(),
+                    };
+                    scene.error(&format!("regions.{}.rigid", k - 1), true, &rule)
+                })?;
+            }
+        }
+        model
     };
     for (i, r) in s.pinned.iter().enumerate() {
         let region = Region::in_box(v2(r.min), v2(r.max));

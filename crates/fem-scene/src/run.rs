@@ -19,16 +19,22 @@
 //! [`Progress`] report, [`FrameSink`]s that receive each recorded [`Frame`] (files, VTK, a
 //! canvas), a [`MeshSource`] for mesh and model files, and how many frames to keep in memory.
 //! This module reads no clock and touches no file.
+//!
+//! Rigid regions (`[[regions]]` with `rigid = true`): their triangles carry no stress (their
+//! von Mises stress reads 0, their `det F` 1); each frame carries every rigid body's pose,
+//! velocity and the force and torque the soft tissue puts on it ([`RigidFrame`]), and the
+//! summary each body's last frame and peak load ([`RigidBodySummary`]).
 
 use fem_core::PlaneModel;
 use fem_core::dispatch_energy;
 use fem_core::energy::{Energy, EnergyKind};
-use fem_core::math::{Real, Vec2};
+use fem_core::math::{Mat2, Real, Vec2};
 use fem_core::mesh::Mesh;
 use fem_core::stress::{ElementStress, VonMisesFormula, populate_element_stress, vertex_average};
+use fem_solvers::diagnostics::rigid_loads;
 use fem_solvers::{
-    AnyStepper, Clock as SolverClock, Contact, ContactPressure, Model, SolverError, SolverKind,
-    State, Stepper,
+    AnyStepper, BodyMotion, Clock as SolverClock, Contact, ContactPressure, Model, SolverError,
+    SolverKind, State, Stepper,
 };
 use serde::{Deserialize, Serialize};
 
@@ -97,6 +103,63 @@ pub struct Frame<'a> {
     /// The material regions: each region's material (the base material first, then each
     /// `[[regions]]` entry) and the region of each triangle.
     pub regions: &'a MaterialRegions,
+    /// The rigid bodies of the rigid regions (empty without them), in the model's order.
+    pub rigid: &'a [RigidFrame],
+    /// The rigid body of each triangle plus one, 0 for a deformable triangle (empty without
+    /// rigid regions).
+    pub rigid_tags: &'a [u32],
+}
+
+/// One rigid body (a bone of a rigid region) at a frame.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct RigidFrame {
+    /// Its centroid, m.
+    #[serde(deserialize_with = "nullable::pair")]
+    pub position: [f64; 2],
+    /// Its rotation from the rest pose, rad (counter-clockwise).
+    #[serde(deserialize_with = "nullable::f64")]
+    pub angle: f64,
+    /// The centroid's velocity, m/s.
+    #[serde(deserialize_with = "nullable::pair")]
+    pub velocity: [f64; 2],
+    /// Angular velocity, rad/s.
+    #[serde(deserialize_with = "nullable::f64")]
+    pub angular_velocity: f64,
+    /// The force the soft tissue puts on it, N per metre of thickness
+    /// ([`fem_solvers::diagnostics::rigid_loads`]).
+    #[serde(deserialize_with = "nullable::pair")]
+    pub force: [f64; 2],
+    /// The tissue's torque on it about its centroid, N m per metre of thickness.
+    #[serde(deserialize_with = "nullable::f64")]
+    pub torque: f64,
+}
+
+/// One rigid body over a run, in `summary.json`'s `rigid_bodies`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct RigidBodySummary {
+    /// The name of its region (`[[regions]]` `name`).
+    pub region: String,
+    /// Its triangles.
+    pub triangles: usize,
+    /// Mass, kg per metre of thickness.
+    pub mass: f64,
+    /// Rotational inertia about its centroid, kg m^2 per metre of thickness.
+    pub inertia: f64,
+    /// `free`, `pinned` or `scheduled` (moved by a prescribed motion).
+    pub motion: String,
+    /// Rest centroid, m.
+    pub rest_centroid: [f64; 2],
+    /// At the last recorded frame.
+    #[serde(rename = "final")]
+    pub last: RigidFrame,
+    /// Largest magnitude of the tissue's force on it over the recorded frames, N per metre.
+    #[serde(deserialize_with = "nullable::f64")]
+    pub peak_force: f64,
+    /// The step of that frame.
+    pub peak_force_step: u64,
+    /// Largest magnitude of the tissue's torque on it over the recorded frames, N m per metre.
+    #[serde(deserialize_with = "nullable::f64")]
+    pub peak_torque: f64,
 }
 
 /// Receives every recorded frame of a run, in order (a file writer, a VTK writer, a canvas).
@@ -170,6 +233,8 @@ pub struct Snapshot {
     pub obstacles: Vec<Vec<[f64; 2]>>,
     /// Normal contact pressure per vertex, Pa (0 off contact; [`fem_solvers::pressure`]).
     pub contact_pressure: Vec<f64>,
+    /// The rigid bodies (empty without rigid regions).
+    pub rigid: Vec<RigidFrame>,
 }
 
 /// Probe statistics in the summary.
@@ -316,6 +381,14 @@ pub struct Summary {
     /// and strain over the run ([`crate::region_stats`]).
     #[serde(default)]
     pub regions: Vec<RegionSummary>,
+    /// The explicit critical time step of the deformable elements at rest, s
+    /// ([`fem_solvers::Model::elastic_critical_time_step`]; rigid regions' triangles left
+    /// out), for every solver: what an explicit run of this scene would need.
+    #[serde(default, deserialize_with = "nullable::f64")]
+    pub critical_time_step: f64,
+    /// The rigid bodies of the rigid regions (empty without them).
+    #[serde(default)]
+    pub rigid_bodies: Vec<RigidBodySummary>,
     /// Framework version.
     pub version: String,
 }
@@ -396,6 +469,13 @@ struct Recorder {
     regions: RegionTracker,
     /// The material regions, as the model was built with them.
     materials: MaterialRegions,
+    /// The rigid bodies at the current frame, their peak loads (force, step, torque), the
+    /// rigid body of each triangle plus one, and the buffers of the tissue's forces.
+    rigid: Vec<RigidFrame>,
+    rigid_peaks: Vec<(f64, u64, f64)>,
+    rigid_tags: Vec<u32>,
+    forces: Vec<Vec2>,
+    scratch: fem_core::assembly::Scratch,
 }
 
 impl Recorder {
@@ -419,10 +499,40 @@ impl Recorder {
             self.formula,
             &mut self.stress,
         );
+        // A rigid triangle carries no stress (its F is a rotation, up to round-off).
+        for (s, &tag) in self.stress.iter_mut().zip(&self.rigid_tags) {
+            if tag > 0 {
+                *s = ElementStress {
+                    cauchy: Mat2::zeros(),
+                    sigma_zz: 0.0,
+                    von_mises: 0.0,
+                    principal: (0.0, 0.0),
+                    det_f: 1.0,
+                    strain: (0.0, 0.0),
+                };
+            }
+        }
         self.von_mises.clear();
         self.von_mises
             .extend(self.stress.iter().map(|s| s.von_mises));
         self.regions.record(mesh, &self.stress, &state.x, step);
+        let loads = rigid_loads(model, state, &mut self.forces, &mut self.scratch);
+        self.rigid.clear();
+        for (k, (b, (force, torque))) in state.rigid.iter().zip(loads).enumerate() {
+            self.rigid.push(RigidFrame {
+                position: [b.position.x, b.position.y],
+                angle: b.angle,
+                velocity: [b.velocity.x, b.velocity.y],
+                angular_velocity: b.angular_velocity,
+                force: [force.x, force.y],
+                torque,
+            });
+            let peak = &mut self.rigid_peaks[k];
+            if force.norm() > peak.0 {
+                (peak.0, peak.1) = (force.norm(), step);
+            }
+            peak.2 = peak.2.max(torque.abs());
+        }
         if let Some((t, vm)) = self
             .von_mises
             .iter()
@@ -478,6 +588,8 @@ impl Recorder {
             contacts,
             pressure,
             regions: &self.materials,
+            rigid: &self.rigid,
+            rigid_tags: &self.rigid_tags,
         };
         for sink in sinks.iter_mut() {
             sink.frame(&frame)?;
@@ -503,6 +615,7 @@ impl Recorder {
             snap.contact_pressure.clear();
             snap.contact_pressure
                 .extend_from_slice(pressure.vertex_pressure());
+            snap.rigid.clone_from(&self.rigid);
             if keep {
                 self.snapshots.push(snap);
             } else {
@@ -603,6 +716,11 @@ fn run_with<E: Energy>(
         snapshots: Vec::new(),
         latest: None,
         materials: regions,
+        rigid: Vec::new(),
+        rigid_peaks: vec![(0.0, 0, 0.0); model.rigid_bodies().len()],
+        rigid_tags: rigid_tags(&model),
+        forces: Vec::new(),
+        scratch: fem_core::assembly::Scratch::new(),
     };
     let outcome = step_loop(
         scene,
@@ -645,6 +763,8 @@ fn run_with<E: Energy>(
     let mut summary = Summary {
         stress_threshold: rec.regions.threshold(),
         regions: Vec::new(),
+        critical_time_step: f64::NAN,
+        rigid_bodies: Vec::new(),
         scene: s.name.clone(),
         energy: s.energy,
         solver: s.solver.kind,
@@ -706,6 +826,27 @@ fn run_with<E: Energy>(
         final_residual,
         version: env!("CARGO_PKG_VERSION").to_owned(),
     };
+    summary.critical_time_step = model.elastic_critical_time_step();
+    summary.rigid_bodies = (model.rigid_bodies().iter().zip(&rec.rigid))
+        .zip(&rec.rigid_peaks)
+        .map(|((body, last), peak)| RigidBodySummary {
+            region: rec.materials.materials[body.region as usize].name.clone(),
+            triangles: body.triangles.len(),
+            mass: body.mass,
+            inertia: body.inertia,
+            motion: match body.motion {
+                BodyMotion::Free => "free",
+                BodyMotion::Pinned => "pinned",
+                BodyMotion::Scheduled(_) => "scheduled",
+            }
+            .to_string(),
+            rest_centroid: [body.centroid.x, body.centroid.y],
+            last: *last,
+            peak_force: peak.0,
+            peak_force_step: peak.1,
+            peak_torque: peak.2,
+        })
+        .collect();
     let snapshots = rec.take_snapshots();
     let (region_summaries, region_series) = rec.regions.finish();
     summary.regions = region_summaries;
@@ -859,6 +1000,20 @@ fn step_loop<E: Energy>(
         final_residual,
         contact,
     })
+}
+
+/// The rigid body of each triangle plus one (0: deformable); empty without rigid regions.
+fn rigid_tags<E: Energy>(model: &Model<E>) -> Vec<u32> {
+    if model.rigid_bodies().is_empty() {
+        return Vec::new();
+    }
+    let mut tags = vec![0; model.mesh().n_triangles()];
+    for (k, body) in model.rigid_bodies().iter().enumerate() {
+        for &t in &body.triangles {
+            tags[t as usize] = k as u32 + 1;
+        }
+    }
+    tags
 }
 
 /// The largest finite value (`-inf` when there is none).

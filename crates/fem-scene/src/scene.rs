@@ -270,6 +270,11 @@ pub struct MaterialRegionSpec {
     /// Density, kg/m^3 (> 0). Default: the base material's.
     #[serde(default)]
     pub density: Option<f64>,
+    /// Rigid: each connected piece of the region is one rigid body (a bone) that the soft
+    /// tissue is attached to ([`fem_solvers::rigid::body`]); its Young's modulus and Poisson
+    /// ratio are then unused. Default `false` (elastic).
+    #[serde(default)]
+    pub rigid: bool,
 }
 
 /// A box of rest positions, m (closed, with a 1e-9 m margin).

@@ -150,6 +150,7 @@ pub use registry::{
     AnyStepper, Capabilities, Clock, ParamsSerde, Solver, SolverKind, SolverParams,
     capability_table,
 };
+pub use rigid::{BodyMotion, RigidBody};
 pub use statics::{StaticParams, StaticReport, StaticSolver, StaticStepper};
 pub use steppers::Stepper;
 pub use steppers::report::StepReport;

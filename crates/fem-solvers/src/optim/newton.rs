@@ -46,6 +46,7 @@ use crate::contact::barrier::{BarrierContact, Dof};
 use crate::error::{SolverError, check_at_most, check_count};
 use crate::model::grab::{Spring, spring_energy, spring_of};
 use crate::model::limits;
+use crate::rigid::{BodyState, RigidBody};
 use fem_core::clock::Stopwatch;
 
 /// Convergence and line-search settings of Newton's method.
@@ -105,6 +106,128 @@ impl NewtonParams {
     }
 }
 
+/// One free rigid body as Newton sees it.
+#[derive(Clone, Debug)]
+struct FreeBody {
+    /// Its index in the model's rigid bodies.
+    index: usize,
+    mass: Real,
+    inertia: Real,
+    /// Its vertices and their rest offsets from the centroid.
+    vertices: Vec<u32>,
+    offsets: Vec<Vec2>,
+}
+
+/// The free rigid bodies of the rigid regions as Newton unknowns: three per body, its
+/// centroid and angle `q = (p, theta)`, in reduced coordinates. A slaved vertex is
+/// `x_v = p + R(theta) r_v`, so `d x_v / d q = J_v = [I | perp(x_v - p)]`: the gradient of the
+/// potential in `q` is `sum_v J_v^T g_v` plus the body's inertia `w diag(M, M, I) (q - q_hat)`
+/// (exact in 2D: a body's kinetic energy is `M |p'|^2 / 2 + I theta'^2 / 2`), and its Hessian
+/// `J^T K J` plus that inertia and the rotation's curvature (see
+/// `NewtonSolver::assemble_rigid`). The slaved vertices are held in the soft system; every
+/// trial places them on the trial poses.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct RigidUnknowns {
+    bodies: Vec<FreeBody>,
+    /// For each vertex, the free body it is slaved to (`u32::MAX`: none).
+    of: Vec<u32>,
+    /// The stiffness entries `(entry, row DOF, column DOF)` with a slaved row or column.
+    entries: Vec<(u32, u32, u32)>,
+    /// Free index of the first body's first unknown.
+    first: usize,
+    /// The current poses `(p_x, p_y, theta)`.
+    q: Vec<[Real; 3]>,
+    /// The inertial targets (implicit Euler: `q + h q'`).
+    target: Vec<[Real; 3]>,
+    /// The poses at the start of the step (the fallback start).
+    start: Vec<[Real; 3]>,
+    trial: Vec<[Real; 3]>,
+}
+
+impl RigidUnknowns {
+    fn new(n_vertices: usize, bodies: &[RigidBody]) -> Self {
+        let mut of = vec![u32::MAX; n_vertices];
+        let mut free = Vec::new();
+        for (index, body) in bodies.iter().enumerate() {
+            if !body.is_free() {
+                continue;
+            }
+            for &v in &body.vertices {
+                of[v as usize] = free.len() as u32;
+            }
+            free.push(FreeBody {
+                index,
+                mass: body.mass,
+                inertia: body.inertia,
+                vertices: body.vertices.clone(),
+                offsets: body.offsets.clone(),
+            });
+        }
+        let n = free.len();
+        RigidUnknowns {
+            bodies: free,
+            of,
+            entries: Vec::new(),
+            first: 0,
+            q: vec![[0.0; 3]; n],
+            target: vec![[0.0; 3]; n],
+            start: vec![[0.0; 3]; n],
+            trial: vec![[0.0; 3]; n],
+        }
+    }
+
+    /// Start a solve from the model's body states `states` (all bodies, the model's order):
+    /// with a step `h`, the unknowns start at and aim for the inertial prediction
+    /// `q + h q'`; without (statics), they start where the bodies are. The slaved vertices of
+    /// `x` are placed on the starting poses.
+    pub(crate) fn begin(&mut self, states: &[BodyState], h: Option<Real>, x: &mut [Vec2]) {
+        for (k, body) in self.bodies.iter().enumerate() {
+            let b = &states[body.index];
+            self.start[k] = [b.position.x, b.position.y, b.angle];
+            self.q[k] = match h {
+                Some(h) => [
+                    b.position.x + h * b.velocity.x,
+                    b.position.y + h * b.velocity.y,
+                    b.angle + h * b.angular_velocity,
+                ],
+                None => self.start[k],
+            };
+            self.target[k] = self.q[k];
+        }
+        let q = std::mem::take(&mut self.q);
+        self.place(&q, x);
+        self.q = q;
+    }
+
+    /// Place the slaved vertices on poses `q`.
+    fn place(&self, q: &[[Real; 3]], x: &mut [Vec2]) {
+        for (body, q) in self.bodies.iter().zip(q) {
+            let (s, c) = fem_core::math::sin_cos(q[2]);
+            for (&v, r) in body.vertices.iter().zip(&body.offsets) {
+                x[v as usize] = Vec2::new(q[0] + c * r.x - s * r.y, q[1] + s * r.x + c * r.y);
+            }
+        }
+    }
+
+    /// The solved poses written into the model's body states `states` (positions only).
+    pub(crate) fn poses(&self) -> impl Iterator<Item = (usize, [Real; 3])> + '_ {
+        self.bodies.iter().zip(&self.q).map(|(b, q)| (b.index, *q))
+    }
+
+    /// The body inertia `w/2 sum (M |p - p_hat|^2 + I (theta - theta_hat)^2)` at poses `q`.
+    fn inertia(&self, weight: Real, q: &[[Real; 3]]) -> Real {
+        if weight == 0.0 {
+            return 0.0;
+        }
+        (self.bodies.iter().zip(q).zip(&self.target))
+            .map(|((b, q), t)| {
+                let (dx, dy, da) = (q[0] - t[0], q[1] - t[1], q[2] - t[2]);
+                0.5 * weight * (b.mass * (dx * dx + dy * dy) + b.inertia * da * da)
+            })
+            .sum()
+    }
+}
+
 /// Rewrites the unknowns to a safe starting point (see [`NewtonSolver::minimise`]).
 pub(crate) type Restart<'a> = &'a dyn Fn(&mut [Vec2]);
 
@@ -148,6 +271,8 @@ pub(crate) struct NewtonSolver {
     n_soft: usize,
     /// The extra unknowns' line-search direction and the obstacles' trial poses.
     trial_q: Vec<[Real; 3]>,
+    /// Free rigid bodies as unknowns, after the contact's extra unknowns.
+    rigid: RigidUnknowns,
     col_ptr: Vec<usize>,
     row_idx: Vec<usize>,
     values: Vec<Real>,
@@ -219,27 +344,57 @@ impl<E: Energy> Potential<'_, E> {
 
 impl NewtonSolver {
     /// Build the reduced pattern for `mesh` with the vertices `kinematic` held (sorted,
-    /// deduplicated), and analyse it symbolically.
-    pub(crate) fn new(
-        mesh: &Mesh,
-        kinematic: &[usize],
-        prefix: &'static str,
-    ) -> Result<Self, SolverError> {
-        Self::with_extra(mesh, kinematic, prefix, 0, &[])
-    }
-
-    /// As [`NewtonSolver::new`], with `n_extra` more unknowns (always free) that may couple
-    /// with each other and with the soft vertices `coupled` (sorted): the poses of moving
-    /// obstacles in barrier contact.
+    /// deduplicated), and analyse it symbolically; with `n_extra` more unknowns (always free)
+    /// that may couple with each other and with the soft vertices `coupled` (sorted): the poses of moving
+    /// obstacles in barrier contact; then three unknowns per body of `rigid` (the model's
+    /// free rigid bodies, whose vertices must be in `kinematic`): see [`RigidUnknowns`].
     pub(crate) fn with_extra(
         mesh: &Mesh,
         kinematic: &[usize],
         prefix: &'static str,
         n_extra: usize,
         coupled: &[u32],
+        rigid: &[RigidBody],
     ) -> Result<Self, SolverError> {
         let self_prefix = prefix;
         let stiffness = Stiffness::new(mesh);
+        let n_contact = n_extra;
+        let mut rigid = RigidUnknowns::new(mesh.n_vertices(), rigid);
+        let n_extra = n_contact + 3 * rigid.bodies.len();
+        // The soft vertices that share an element with a body's vertex couple with that
+        // body's three unknowns (`touch`, sorted per vertex); the extra unknowns' own block is
+        // dense (a few unknowns).
+        let mut touch: Vec<Vec<u32>> = vec![Vec::new(); mesh.n_vertices()];
+        if !rigid.bodies.is_empty() {
+            let m = &stiffness.matrix;
+            for r in 0..m.row_offsets.len() - 1 {
+                if rigid.of[r / 2] == u32::MAX {
+                    continue;
+                }
+                for e in m.row_offsets[r]..m.row_offsets[r + 1] {
+                    let c = m.col_indices[e];
+                    if rigid.of[c / 2] == u32::MAX {
+                        touch[c / 2].push(rigid.of[r / 2]);
+                    }
+                    rigid.entries.push((e as u32, r as u32, c as u32));
+                }
+            }
+            // The entries of a soft row in a body's column, too (the matrix is symmetric:
+            // the same pairs, seen from the other side).
+            let extra: Vec<(u32, u32, u32)> = (0..m.row_offsets.len() - 1)
+                .filter(|r| rigid.of[r / 2] == u32::MAX)
+                .flat_map(|r| {
+                    (m.row_offsets[r]..m.row_offsets[r + 1])
+                        .filter(|&e| rigid.of[m.col_indices[e] / 2] != u32::MAX)
+                        .map(move |e| (e as u32, r as u32, m.col_indices[e] as u32))
+                })
+                .collect();
+            rigid.entries.extend(extra);
+            for t in &mut touch {
+                t.sort_unstable();
+                t.dedup();
+            }
+        }
         let n_dof = 2 * mesh.n_vertices();
         let mut free = vec![0u32; n_dof];
         let mut n_free = 0usize;
@@ -290,9 +445,14 @@ impl NewtonSolver {
                     row_idx.push(i as usize);
                 }
             }
-            // Rows of the extra unknowns (after every soft row) for coupled vertices.
-            if n_extra > 0 && coupled.binary_search(&((r / 2) as u32)).is_ok() {
-                row_idx.extend(n_soft..n_soft + n_extra);
+            // Rows of the extra unknowns (after every soft row) for coupled vertices: every
+            // contact unknown, and the unknowns of the bodies the vertex touches.
+            if n_contact > 0 && coupled.binary_search(&((r / 2) as u32)).is_ok() {
+                row_idx.extend(n_soft..n_soft + n_contact);
+            }
+            for &b in &touch[r / 2] {
+                let base = n_soft + n_contact + 3 * b as usize;
+                row_idx.extend(base..base + 3);
             }
             col_ptr.push(row_idx.len());
         }
@@ -330,9 +490,11 @@ impl NewtonSolver {
                 "out of memory for the workspace",
             )
         })?;
+        rigid.first = n_soft + n_contact;
         Ok(NewtonSolver {
             n_soft,
             trial_q: Vec::new(),
+            rigid,
             prefix,
             l_values: vec![0.0; symbolic.len_val()],
             symbolic,
@@ -352,6 +514,12 @@ impl NewtonSolver {
             direction: vec![0.0; n_free],
             trial: vec![Vec2::zeros(); mesh.n_vertices()],
         })
+    }
+
+    /// The free rigid bodies' unknowns (start a solve with [`RigidUnknowns::begin`], read
+    /// the result with [`RigidUnknowns::poses`]).
+    pub(crate) fn rigid(&mut self) -> &mut RigidUnknowns {
+        &mut self.rigid
     }
 
     /// Free degrees of freedom.
@@ -379,13 +547,15 @@ impl NewtonSolver {
         rows.binary_search(&r).ok().map(|k| self.col_ptr[c] + k)
     }
 
-    /// Gradient of the potential (with the contact term at the poses `q`, when there is one)
-    /// over the free DOFs into `self.gradient`; returns its norm.
+    /// Gradient of the potential (with the contact term at the poses `q`, when there is one,
+    /// and the free rigid bodies at poses `rq`) over the free DOFs into `self.gradient`;
+    /// returns its norm.
     fn gradient<E: Energy>(
         &mut self,
         p: &Potential<'_, E>,
         x: &[Vec2],
         contact: Option<(&BarrierContact, &[[Real; 3]])>,
+        (rigid, rq): (&RigidUnknowns, &[[Real; 3]]),
     ) -> Real {
         populate_forces(p.mesh, p.energy, x, &mut self.forces, &mut self.scratch);
         let mut elastic_sq = 0.0;
@@ -397,8 +567,34 @@ impl NewtonSolver {
             }
         }
         self.elastic_force = elastic_sq.sqrt();
+        self.gradient[self.n_soft..].fill(0.0);
+        if !rigid.bodies.is_empty() {
+            // A slaved vertex's force and load reach its body through `J^T`; its inertia is
+            // the body's.
+            let first = rigid.first;
+            for (k, (body, q)) in rigid.bodies.iter().zip(rq).enumerate() {
+                let (mut g, mut force_sq) = ([0.0; 3], 0.0);
+                for &v in &body.vertices {
+                    let v = v as usize;
+                    let gv = -self.forces[v] - p.load[v];
+                    let r = x[v] - Vec2::new(q[0], q[1]);
+                    g[0] += gv.x;
+                    g[1] += gv.y;
+                    g[2] += r.x * gv.y - r.y * gv.x;
+                    force_sq += self.forces[v].norm_squared();
+                }
+                if p.weight > 0.0 {
+                    let t = &rigid.target[k];
+                    g[0] += p.weight * body.mass * (q[0] - t[0]);
+                    g[1] += p.weight * body.mass * (q[1] - t[1]);
+                    g[2] += p.weight * body.inertia * (q[2] - t[2]);
+                }
+                self.gradient[first + 3 * k..first + 3 * k + 3].copy_from_slice(&g);
+                elastic_sq += force_sq;
+            }
+            self.elastic_force = elastic_sq.sqrt();
+        }
         if let Some((c, q)) = contact {
-            self.gradient[self.n_soft..].fill(0.0);
             let n_soft = self.n_soft;
             let (forces, gradient) = (&mut self.forces, &mut self.gradient);
             c.derivatives(
@@ -440,6 +636,7 @@ impl NewtonSolver {
         p: &Potential<'_, E>,
         x: &[Vec2],
         contact: Option<(&BarrierContact, &[[Real; 3]])>,
+        (rigid, rq): (&RigidUnknowns, &[[Real; 3]]),
         report: &mut NewtonReport,
     ) -> Result<(), SolverError> {
         let start = Stopwatch::start();
@@ -474,6 +671,9 @@ impl NewtonSolver {
                     self.values[self.diag[j as usize]] += s.stiffness;
                 }
             }
+        }
+        if !rigid.bodies.is_empty() {
+            self.assemble_rigid(p, x, rigid, rq);
         }
         if let Some((c, q)) = contact {
             let mut values = std::mem::take(&mut self.values);
@@ -552,6 +752,77 @@ impl NewtonSolver {
         ))
     }
 
+    /// The rigid bodies' part of the reduced Hessian `J^T K J` (the stiffness entries that
+    /// touch a slaved vertex, `K` already in `self.stiffness`), their inertia `w diag(M, M, I)`
+    /// and the rotation's own curvature `-sum_v g_v . (x_v - p)` (the second derivative of
+    /// `x_v` in the angle), kept only where positive so the matrix stays positive definite.
+    /// `self.forces` holds the elastic forces at `x` (the gradient was evaluated there).
+    fn assemble_rigid<E: Energy>(
+        &mut self,
+        p: &Potential<'_, E>,
+        x: &[Vec2],
+        rigid: &RigidUnknowns,
+        rq: &[[Real; 3]],
+    ) {
+        let first = rigid.first;
+        // The reduced coordinates of one full DOF: up to three (index, coefficient) pairs.
+        let expand = |r: usize, out: &mut [(usize, Real); 3]| -> usize {
+            let v = r / 2;
+            let d = r % 2;
+            let b = rigid.of[v];
+            if b == u32::MAX {
+                let j = self.free[r];
+                if j == u32::MAX {
+                    return 0;
+                }
+                out[0] = (j as usize, 1.0);
+                return 1;
+            }
+            let (b, q) = (b as usize, &rq[b as usize]);
+            let rel = x[v] - Vec2::new(q[0], q[1]);
+            let base = first + 3 * b;
+            out[0] = (base + d, 1.0);
+            // d x_v / d angle = perp(x_v - p) = (-r_y, r_x).
+            out[1] = (base + 2, if d == 0 { -rel.y } else { rel.x });
+            2
+        };
+        let (mut a, mut c) = ([(0usize, 0.0); 3], [(0usize, 0.0); 3]);
+        let mut values = std::mem::take(&mut self.values);
+        for &(e, r, col) in &rigid.entries {
+            let k = self.stiffness.matrix.values[e as usize];
+            if k == 0.0 {
+                continue;
+            }
+            let na = expand(r as usize, &mut a);
+            let nc = expand(col as usize, &mut c);
+            for &(i, ai) in &a[..na] {
+                for &(j, cj) in &c[..nc] {
+                    if i >= j {
+                        let slot = self.slot(i, j).expect("a body's entry outside the pattern");
+                        values[slot] += ai * k * cj;
+                    }
+                }
+            }
+        }
+        for (b, (body, q)) in rigid.bodies.iter().zip(rq).enumerate() {
+            let base = first + 3 * b;
+            let mut curvature = 0.0;
+            for &v in &body.vertices {
+                let v = v as usize;
+                let gv = -self.forces[v] - p.load[v];
+                curvature -= gv.dot(&(x[v] - Vec2::new(q[0], q[1])));
+            }
+            let d = |i: usize| self.diag[i];
+            values[d(base + 2)] += curvature.max(0.0);
+            if p.weight > 0.0 {
+                values[d(base)] += p.weight * body.mass;
+                values[d(base + 1)] += p.weight * body.mass;
+                values[d(base + 2)] += p.weight * body.inertia;
+            }
+        }
+        self.values = values;
+    }
+
     /// Solve `H d = -g` with the last factorisation into `self.direction`.
     fn solve(&mut self) {
         for (d, g) in self.direction.iter_mut().zip(&self.gradient) {
@@ -578,8 +849,18 @@ impl NewtonSolver {
     ) -> Result<NewtonReport, SolverError> {
         let mut report = NewtonReport::default();
         let mut trial_q = std::mem::take(&mut self.trial_q);
-        let value = |x: &[Vec2], q: Option<(&BarrierContact, &[[Real; 3]])>, s: &mut Scratch| {
+        let mut rq = std::mem::take(&mut self.rigid.q);
+        let mut rtrial = std::mem::take(&mut self.rigid.trial);
+        let rigid = std::mem::take(&mut self.rigid);
+        // The slaved vertices sit on the starting poses.
+        rigid.place(&rq, x);
+        let value = |x: &[Vec2],
+                     q: Option<(&BarrierContact, &[[Real; 3]])>,
+                     rq: &[[Real; 3]],
+                     s: &mut Scratch| {
             let (e, m) = p.value(x, s);
+            let inertia = rigid.inertia(p.weight, rq);
+            let (e, m) = (e + inertia, m + inertia);
             match q {
                 Some((c, q)) => {
                     let (ce, cm) = c.value(x, q);
@@ -594,28 +875,42 @@ impl NewtonSolver {
         let (mut phi, mut magnitude) = value(
             x,
             contact.as_deref().map(|c| (c, &c.q[..])),
+            &rq,
             &mut self.scratch,
         );
         if let (false, Some(restart)) = (phi.is_finite(), fallback) {
             restart(x);
+            rq.clone_from(&rigid.start);
+            rigid.place(&rq, x);
             if let Some(c) = contact.as_deref_mut() {
                 c.prepare(x, None);
             }
             (phi, magnitude) = value(
                 x,
                 contact.as_deref().map(|c| (c, &c.q[..])),
+                &rq,
                 &mut self.scratch,
             );
         }
         if !phi.is_finite() {
             self.trial_q = trial_q;
+            self.rigid = RigidUnknowns {
+                q: rq,
+                trial: rtrial,
+                ..rigid
+            };
             return Err(SolverError::invalid(
                 format!("{}.initial_guess", self.prefix),
                 phi,
                 "the potential is not finite at the starting positions",
             ));
         }
-        let mut residual = self.gradient(p, x, contact.as_deref().map(|c| (c, &c.q[..])));
+        let mut residual = self.gradient(
+            p,
+            x,
+            contact.as_deref().map(|c| (c, &c.q[..])),
+            (&rigid, &rq),
+        );
         let load: Real = p.load.iter().map(|f| f.norm_squared()).sum::<Real>().sqrt();
         // The force scale: the first residual, the load, and the elastic forces on the free
         // vertices, which at equilibrium balance the load and the contact forces (a body held
@@ -639,7 +934,13 @@ impl NewtonSolver {
         let residual_floor = 1e-13 * psi_scale / size;
         let mut at_floor = residual <= residual_floor;
         while residual > target && !at_floor && report.iterations < params.max_iterations {
-            self.factorise(p, x, contact.as_deref().map(|c| (c, &c.q[..])), &mut report)?;
+            self.factorise(
+                p,
+                x,
+                contact.as_deref().map(|c| (c, &c.q[..])),
+                (&rigid, &rq),
+                &mut report,
+            )?;
             let start = Stopwatch::start();
             self.solve();
             report.solve_seconds += start.seconds();
@@ -652,7 +953,7 @@ impl NewtonSolver {
             if let Some(c) = contact.as_deref_mut() {
                 // A rotating obstacle turns little enough in one line search for the CCD on
                 // its corners' chords to hold: shorten the whole direction.
-                c.dq.copy_from_slice(&self.direction[self.n_soft..]);
+                c.dq.copy_from_slice(&self.direction[self.n_soft..rigid.first]);
                 let limit = c.rotation_limit(x);
                 if limit < 1.0 {
                     for d in self.direction.iter_mut() {
@@ -678,7 +979,7 @@ impl NewtonSolver {
                         }
                     }
                 }
-                c.dq.copy_from_slice(&self.direction[self.n_soft..]);
+                c.dq.copy_from_slice(&self.direction[self.n_soft..rigid.first]);
                 c.prepare(x, Some(&self.trial));
                 alpha = c.max_step(x, &self.trial);
             }
@@ -696,8 +997,15 @@ impl NewtonSolver {
                 if let Some(c) = contact.as_deref() {
                     c.trial_poses(alpha, &mut trial_q);
                 }
+                for (k, (t, q)) in rtrial.iter_mut().zip(&rq).enumerate() {
+                    for d in 0..3 {
+                        t[d] = q[d] + alpha * self.direction[rigid.first + 3 * k + d];
+                    }
+                }
+                rigid.place(&rtrial, &mut self.trial);
                 let cq = contact.as_deref().map(|c| (c, &trial_q[..]));
-                let (trial_phi, trial_magnitude) = value(&self.trial, cq, &mut self.scratch);
+                let (trial_phi, trial_magnitude) =
+                    value(&self.trial, cq, &rtrial, &mut self.scratch);
                 if !trial_phi.is_finite() {
                     alpha *= 0.5;
                     continue;
@@ -707,7 +1015,7 @@ impl NewtonSolver {
                     (trial_phi - phi).abs() <= 1e-12 * (magnitude + trial_magnitude + psi_scale);
                 let lowers_residual = in_round_off && {
                     let trial = std::mem::take(&mut self.trial);
-                    let r = self.gradient(p, &trial, cq);
+                    let r = self.gradient(p, &trial, cq, (&rigid, &rtrial));
                     self.trial = trial;
                     r < residual
                 };
@@ -735,18 +1043,29 @@ impl NewtonSolver {
                 break;
             }
             x.copy_from_slice(&self.trial);
+            rq.clone_from(&rtrial);
             if let Some(c) = contact.as_deref_mut() {
                 c.q.clone_from(&trial_q);
                 c.prepare(x, None);
             }
             let start = Stopwatch::start();
-            residual = self.gradient(p, x, contact.as_deref().map(|c| (c, &c.q[..])));
+            residual = self.gradient(
+                p,
+                x,
+                contact.as_deref().map(|c| (c, &c.q[..])),
+                (&rigid, &rq),
+            );
             report.assembly_seconds += start.seconds();
             report.residuals.push(residual);
             report.potentials.push(phi);
             at_floor |= residual <= residual_floor;
         }
         self.trial_q = trial_q;
+        self.rigid = RigidUnknowns {
+            q: rq,
+            trial: rtrial,
+            ..rigid
+        };
         report.converged = residual <= target || at_floor;
         let (mut min_det, mut inverted) = (Real::INFINITY, 0);
         for (t, el) in p.mesh.elements().iter().enumerate() {

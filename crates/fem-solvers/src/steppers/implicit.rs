@@ -103,6 +103,11 @@ pub struct ImplicitStepper {
     /// The obstacles' target poses of the step and their new states.
     targets: Vec<[Real; 3]>,
     bodies_new: Vec<BodyState>,
+    /// The rigid regions' new poses.
+    rigid_new: Vec<BodyState>,
+    /// The lumped masses, zero on the vertices of free rigid bodies (whose inertia is the
+    /// body's).
+    masses: Vec<Real>,
     /// The smallest distance over the candidate pairs at the end of the last step, m.
     min_distance: Real,
 }
@@ -116,21 +121,25 @@ impl ImplicitStepper {
         let contact = model.has_contact().then(|| {
             BarrierContact::new(model, model.contact_params().friction_velocity * params.dt)
         });
-        let solver = match &contact {
-            Some(c) => NewtonSolver::with_extra(
-                model.mesh(),
-                &kinematic,
-                "implicit",
-                c.n_extra(),
-                c.coupled_vertices(),
-            )?,
-            None => NewtonSolver::new(model.mesh(), &kinematic, "implicit")?,
+        let (n_extra, coupled) = match &contact {
+            Some(c) => (c.n_extra(), c.coupled_vertices()),
+            None => (0, &[][..]),
         };
+        let solver = NewtonSolver::with_extra(
+            model.elastic_mesh(),
+            &kinematic,
+            "implicit",
+            n_extra,
+            coupled,
+            model.rigid_bodies(),
+        )?;
         let n = model.mesh().n_vertices();
         Ok(ImplicitStepper {
             contact,
             targets: Vec::new(),
             bodies_new: Vec::new(),
+            rigid_new: Vec::new(),
+            masses: inertial_masses(model),
             min_distance: Real::INFINITY,
             layout: model.layout(),
             decay: exp(-params.damping * params.dt),
@@ -168,6 +177,18 @@ impl ImplicitStepper {
     }
 }
 
+/// The lumped masses with those of free rigid bodies' vertices set to zero: Newton's vertex
+/// inertia, the bodies' own being theirs ([`crate::optim::newton::RigidUnknowns`]).
+pub(crate) fn inertial_masses<E: Energy>(model: &Model<E>) -> Vec<Real> {
+    let mut m = model.masses().to_vec();
+    for body in model.rigid_bodies().iter().filter(|b| b.is_free()) {
+        for &v in &body.vertices {
+            m[v as usize] = 0.0;
+        }
+    }
+    m
+}
+
 /// The external load per vertex: gravity `m g` plus the nodal forces.
 pub(crate) fn external_load<E: Energy>(model: &Model<E>, load: &mut [Vec2]) {
     for (l, m) in load.iter_mut().zip(model.masses()) {
@@ -203,10 +224,13 @@ impl Stepper for ImplicitStepper {
             .kinematics()
             .apply(t, h, t + h, &state.x, &mut self.target, &mut self.v_new);
         self.x_new.copy_from_slice(&self.target);
+        self.solver
+            .rigid()
+            .begin(&state.rigid, Some(h), &mut self.x_new);
         let potential = Potential {
-            mesh: model.mesh(),
-            energy: model.energies(),
-            masses: model.masses(),
+            mesh: model.elastic_mesh(),
+            energy: model.elastic_energies(),
+            masses: &self.masses,
             weight: 1.0 / (h * h),
             target: &self.target,
             load: &self.load,
@@ -263,6 +287,15 @@ impl Stepper for ImplicitStepper {
         for ((v, xn), x) in self.v_new.iter_mut().zip(&self.x_new).zip(&state.x) {
             *v = (xn - x) / h * self.decay;
         }
+        self.rigid_new.clone_from(&state.rigid);
+        for (k, q) in self.solver.rigid().poses() {
+            let b = &mut self.rigid_new[k];
+            let (p, angle) = (Vec2::new(q[0], q[1]), q[2]);
+            b.velocity = (p - b.position) / h * self.decay;
+            b.angular_velocity = (angle - b.angle) / h * self.decay;
+            b.position = p;
+            b.angle = angle;
+        }
         let mut contacts = 0;
         if let Some(c) = self.contact.as_mut() {
             end_poses(c, model, state, h, &mut self.bodies_new);
@@ -280,7 +313,7 @@ impl Stepper for ImplicitStepper {
             x: &mut self.x_new,
             v: &mut self.v_new,
             bodies: self.contact.is_some().then_some(&mut self.bodies_new),
-            rigid: None,
+            rigid: Some(&mut self.rigid_new),
             known_finite: false,
             inverted: report.inverted,
             min_det_f: report.min_det_f,
@@ -325,7 +358,7 @@ impl Solver for ImplicitStepper {
         summary: "implicit (backward) Euler: Newton on the incremental potential, sparse Cholesky",
         paper: false,
         contact: true,
-        rigid_regions: false,
+        rigid_regions: true,
         implicit: true,
         iterations: false,
         substeps: false,

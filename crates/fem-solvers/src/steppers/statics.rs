@@ -127,6 +127,8 @@ pub struct StaticStepper {
     /// The obstacles' target poses and new states.
     targets: Vec<[Real; 3]>,
     bodies_new: Vec<BodyState>,
+    /// The rigid regions' new poses.
+    rigid_new: Vec<BodyState>,
     /// The smallest distance over the candidate pairs at the last equilibrium, m.
     min_distance: Real,
 }
@@ -177,21 +179,24 @@ impl StaticStepper {
         let contact = model
             .has_contact()
             .then(|| BarrierContact::new(model, model.contact_params().barrier_distance));
-        let solver = match &contact {
-            Some(c) => NewtonSolver::with_extra(
-                model.mesh(),
-                &kinematic,
-                "static",
-                c.n_extra(),
-                c.coupled_vertices(),
-            )?,
-            None => NewtonSolver::new(model.mesh(), &kinematic, "static")?,
+        let (n_extra, coupled) = match &contact {
+            Some(c) => (c.n_extra(), c.coupled_vertices()),
+            None => (0, &[][..]),
         };
+        let solver = NewtonSolver::with_extra(
+            model.elastic_mesh(),
+            &kinematic,
+            "static",
+            n_extra,
+            coupled,
+            model.rigid_bodies(),
+        )?;
         let n = model.mesh().n_vertices();
         Ok(StaticStepper {
             contact,
             targets: Vec::new(),
             bodies_new: Vec::new(),
+            rigid_new: Vec::new(),
             min_distance: Real::INFINITY,
             layout: model.layout(),
             increment: 1.0 / params.load_steps as Real,
@@ -338,9 +343,12 @@ impl Stepper for StaticStepper {
                     _ => o + next * u,
                 };
             }
+            self.solver
+                .rigid()
+                .begin(&state.rigid, None, &mut self.x_new);
             let potential = Potential {
-                mesh: model.mesh(),
-                energy: model.energies(),
+                mesh: model.elastic_mesh(),
+                energy: model.elastic_energies(),
                 masses: model.masses(),
                 weight: 0.0,
                 target: &[],
@@ -395,6 +403,14 @@ impl Stepper for StaticStepper {
             let reason = match outcome {
                 Ok(r) if r.converged && r.min_det_f.is_finite() => {
                     self.v_new.fill(Vec2::zeros());
+                    self.rigid_new.clone_from(&state.rigid);
+                    for (k, q) in self.solver.rigid().poses() {
+                        let b = &mut self.rigid_new[k];
+                        b.position = Vec2::new(q[0], q[1]);
+                        b.angle = q[2];
+                        b.velocity = Vec2::zeros();
+                        b.angular_velocity = 0.0;
+                    }
                     let mut contacts = 0;
                     if let Some(c) = self.contact.as_mut() {
                         self.bodies_new.clone_from(&state.bodies);
@@ -412,7 +428,7 @@ impl Stepper for StaticStepper {
                         x: &mut self.x_new,
                         v: &mut self.v_new,
                         bodies: self.contact.is_some().then_some(&mut self.bodies_new),
-                        rigid: None,
+                        rigid: Some(&mut self.rigid_new),
                         known_finite: false,
                         inverted: r.inverted,
                         min_det_f: r.min_det_f,
@@ -474,7 +490,7 @@ impl Solver for StaticStepper {
         summary: "quasi-static equilibrium (no inertia): Newton per load increment, halved on failure, sparse Cholesky",
         paper: false,
         contact: true,
-        rigid_regions: false,
+        rigid_regions: true,
         implicit: true,
         iterations: false,
         substeps: false,

@@ -72,13 +72,40 @@
 //! pushed faster than the gaps let the sweeps follow lags its schedule (measured in
 //! `tests/suite/barrier_contact.rs`).
 //!
+//! **Rigid regions** ([`crate::rigid::body`], after Augmented VBD: Giles, Diaz & Yuksel 2025,
+//! which treats a rigid body as one more block). The elements and energies are those of the
+//! elastic mesh ([`Model::elastic_mesh`]): a rigid triangle carries no energy. Each free body
+//! is a block of three unknowns `q = (p, theta)`, its vertices slaved, `x_v = p + R(theta) r_v`,
+//! so `dx_v = J_v dq` with `J_v = [I | perp(x_v - p)]`, `perp(u) = (-u_y, u_x)`. Its local
+//! potential is its inertia `M / (2 h^2) |p - y_p|^2 + I / (2 h^2) (theta - y_theta)^2`
+//! (`y = (p + h v + h^2 g, theta + h omega)`; in 2D `diag(M, M, I)` in `(p, theta)` is exact),
+//! the nodal loads and grab springs on its vertices, and the energy of every deformable
+//! triangle with a corner on it (the other vertices held). One Newton step on it: gradient
+//! `sum_v J_v^T g_v`, 3x3 matrix `diag(M, M, I) / h^2 + sum_e sum_ab J_a^T H_ab J_b` with
+//! `H_ab` the 2x2 blocks between the body's corners of the triangle's Hessian built from the
+//! projected `dP/dF` ([`Energy::dpk1_projected`], so each triangle's part is positive
+//! semi-definite, as the vertex blocks' are), plus the rotation's curvature
+//! `-sum_v g_v . (x_v - p)` on the angle when positive; solved by Cholesky (a failure leaves
+//! the body in place), halved as a vertex step is (line search, inversion), and the body's
+//! vertices placed on the new pose. After each sweep's colours the free bodies take their
+//! step one after another in the order of [`Model::rigid_bodies`] (serial, so the bits do not
+//! depend on the threads); the next sweep's vertices see them. The first pose is the initial
+//! guess's counterpart (`previous`: the pose; `inertia`: `y` plus the loads' acceleration;
+//! `adaptive`: `y` with the clamped last acceleration along the external one); with contact
+//! it is the pose, so the CCD of the start never moves a body's vertices apart. Chebyshev
+//! acceleration extrapolates the free vertices only (the bodies are left out). At the end
+//! the body's velocities are `(q - q_t) / h` damped as the vertices', and the step's end places
+//! its vertices. Contact acts on the soft vertices only: the barrier and friction of a body's
+//! slaved vertices are ignored (they are neither pushed nor checked by the CCD).
+//!
 //! Registered as `vbd` ([`Solver`]); scene keys `dt`, `substeps`, `iterations`, `damping`,
 //! `init`, `chebyshev_rho`, `line_search`.
 
 use fem_core::energy::{ElementEnergies, Energy};
-use fem_core::math::{Mat2, Real, Vec2, exp};
+use fem_core::math::{Mat2, Mat4, Real, Vec2, exp, vec_index};
 use fem_core::mesh::VertexAdjacency;
 use fem_core::par::prelude::*;
+use nalgebra::{Matrix3, Vector3};
 
 use super::{Stepper, check_step_inputs};
 use crate::contact::Contact;
@@ -91,7 +118,7 @@ use crate::model::Model;
 use crate::model::grab::{Spring, spring_of};
 use crate::model::limits;
 use crate::model::state::State;
-use crate::rigid::BodyState;
+use crate::rigid::{BodyState, Frame, RigidBody, cross};
 use crate::steppers::colour::VertexColouring;
 use crate::steppers::commit::{Kinematic, StepEnd};
 use crate::steppers::implicit::external_load;
@@ -231,6 +258,81 @@ pub struct VbdStepper {
     bodies_new: Vec<BodyState>,
     /// The smallest distance over the candidate pairs at the end of the last step, m.
     min_distance: Real,
+    /// The free rigid bodies' blocks, in the order of [`Model::rigid_bodies`].
+    blocks: Vec<BodyBlock>,
+    /// The rigid bodies' poses being iterated (one per body; those of kinematic bodies are
+    /// ignored by the step's end), then their new states.
+    rigid_new: Vec<BodyState>,
+    /// The rigid bodies' velocities at the start of the last substep (adaptive guess, read
+    /// when `v_prev` is set).
+    rigid_prev: Vec<Vec2>,
+}
+
+/// A free rigid body as one block of the sweeps (see the module docs).
+#[derive(Clone, Debug)]
+struct BodyBlock {
+    /// The body's index in [`Model::rigid_bodies`].
+    body: usize,
+    /// The deformable elements with a corner on the body, increasing, with the corners that
+    /// are the body's (bit `k` for corner `k`).
+    elements: Vec<(u32, u8)>,
+    /// The nodal loads on the body's vertices (gravity apart), refreshed each step.
+    forces: Vec<(u32, Vec2)>,
+    /// The inertial target of the substep: `p + h v + h^2 g` and `theta + h omega`.
+    target: (Vec2, Real),
+}
+
+/// `sum_jl a_j D_(ij),(kl) b_l`: the 2x2 block of `dP/dF = D` between two corners with
+/// shape-function gradients `a` and `b`.
+#[inline]
+fn contract_pair(d: &Mat4, a: &Vec2, b: &Vec2) -> Mat2 {
+    let mut m = Mat2::zeros();
+    for i in 0..2 {
+        for k in 0..2 {
+            let mut s = 0.0;
+            for j in 0..2 {
+                for l in 0..2 {
+                    s += a[j] * d[(vec_index(i, j), vec_index(k, l))] * b[l];
+                }
+            }
+            m[(i, k)] = s;
+        }
+    }
+    m
+}
+
+/// `perp(u) = (-u_y, u_x)`: how a point at lever `u` moves per unit of rotation.
+#[inline(always)]
+fn perp(u: Vec2) -> Vec2 {
+    Vec2::new(-u.y, u.x)
+}
+
+/// Add the gradient `gv` of a vertex at lever `r` from the centroid to a body's gradient `g`
+/// (`J^T gv`) and `gv . r` to `lever` (the rotation's curvature is `-sum gv . r`).
+#[inline(always)]
+fn add_lever_gradient(g: &mut Vector3<Real>, lever: &mut Real, gv: Vec2, r: Vec2) {
+    g.x += gv.x;
+    g.y += gv.y;
+    g.z += cross(r, gv);
+    *lever += gv.dot(&r);
+}
+
+/// Add `J_a^T B J_b` to a body's 3x3 matrix, for the 2x2 block `B` between vertices at levers
+/// `ra` and `rb`.
+#[inline(always)]
+fn add_lever_block(h: &mut Matrix3<Real>, b: &Mat2, ra: Vec2, rb: Vec2) {
+    let (pa, pb) = (perp(ra), perp(rb));
+    let col = b * pb;
+    let row = b.transpose() * pa;
+    h[(0, 0)] += b[(0, 0)];
+    h[(0, 1)] += b[(0, 1)];
+    h[(1, 0)] += b[(1, 0)];
+    h[(1, 1)] += b[(1, 1)];
+    h[(0, 2)] += col.x;
+    h[(1, 2)] += col.y;
+    h[(2, 0)] += row.x;
+    h[(2, 1)] += row.y;
+    h[(2, 2)] += pa.dot(&col);
 }
 
 /// One vertex update: gradient norm before it (N), and how it went.
@@ -463,6 +565,188 @@ impl<E: Energy> Local<'_, E> {
         out.rejected = true;
         (xi, out)
     }
+
+    /// The local potential of a free body at `pose` with its vertices placed in `x`, measured
+    /// from its loads at `start` (the pose the update began at) as [`Local::potential`] is.
+    fn body_potential(
+        &self,
+        blk: &BodyBlock,
+        body: &RigidBody,
+        start: &BodyState,
+        pose: &BodyState,
+        x: &[Vec2],
+    ) -> Real {
+        let (tp, ta) = blk.target;
+        let mut e = 0.5 * body.mass * self.w * (pose.position - tp).norm_squared()
+            + 0.5 * body.inertia * self.w * (pose.angle - ta) * (pose.angle - ta);
+        if !blk.forces.is_empty() {
+            let frame = Frame::of(start);
+            for &(v, f) in &blk.forces {
+                let k = body
+                    .vertices
+                    .binary_search(&v)
+                    .expect("a vertex of the body");
+                e -= f.dot(&(x[v as usize] - frame.apply(body.offsets[k])));
+            }
+        }
+        if !self.springs.is_empty() {
+            for &v in &body.vertices {
+                if let Some(s) = spring_of(self.springs, v as usize) {
+                    e += 0.5 * s.stiffness * (x[v as usize] - s.goal).norm_squared();
+                }
+            }
+        }
+        for &(t, _) in &blk.elements {
+            let el = &self.els[t as usize];
+            e += el.area * el.energy(self.energy).psi(&deformation_gradient(el, x));
+        }
+        e
+    }
+
+    /// One Newton step on a free body's pose (see the module docs): `pose` moves and the
+    /// body's vertices in `x` are placed on it. The outcome's gradient is the net force's norm.
+    fn body_update(
+        &self,
+        blk: &BodyBlock,
+        body: &RigidBody,
+        pose: &mut BodyState,
+        x: &mut [Vec2],
+    ) -> Outcome {
+        let start = *pose;
+        let p0 = start.position;
+        let (tp, ta) = blk.target;
+        let (mw, iw) = (body.mass * self.w, body.inertia * self.w);
+        let mut g = Vector3::new(
+            mw * (p0.x - tp.x),
+            mw * (p0.y - tp.y),
+            iw * (start.angle - ta),
+        );
+        let mut h = Matrix3::from_diagonal(&Vector3::new(mw, mw, iw));
+        // sum_v g_v . (x_v - p): minus the rotation's curvature.
+        let mut lever = 0.0;
+        for &(v, f) in &blk.forces {
+            add_lever_gradient(&mut g, &mut lever, -f, x[v as usize] - p0);
+        }
+        let mut spring_energy = 0.0;
+        if !self.springs.is_empty() {
+            for &v in &body.vertices {
+                if let Some(s) = spring_of(self.springs, v as usize) {
+                    let (xv, r) = (x[v as usize], x[v as usize] - p0);
+                    add_lever_gradient(&mut g, &mut lever, (xv - s.goal) * s.stiffness, r);
+                    add_lever_block(&mut h, &(Mat2::identity() * s.stiffness), r, r);
+                    spring_energy += 0.5 * s.stiffness * (xv - s.goal).norm_squared();
+                }
+            }
+        }
+        let search = self.line_search;
+        let (mut elastic, mut elastic_magnitude, mut local_scale) = (0.0, 0.0, 0.0);
+        for &(t, mask) in &blk.elements {
+            let el = &self.els[t as usize];
+            let energy = el.energy(self.energy);
+            local_scale += self.moduli[el.region as usize] * el.area;
+            let f = deformation_gradient(el, x);
+            if search {
+                let psi = energy.psi(&f);
+                elastic += el.area * psi;
+                elastic_magnitude += el.area * psi.abs();
+            }
+            let p = energy.pk1(&f);
+            let d = energy.dpk1_projected(&f) * el.area;
+            let mut corners = [(Vec2::zeros(), Vec2::zeros()); 3];
+            let mut n = 0;
+            for k in 0..3u8 {
+                if mask & (1 << k) != 0 {
+                    let ga = corner_gradient(el, k);
+                    let r = x[el.idx[k as usize] as usize] - p0;
+                    add_lever_gradient(&mut g, &mut lever, (p * ga) * el.area, r);
+                    corners[n] = (ga, r);
+                    n += 1;
+                }
+            }
+            for &(ga, ra) in &corners[..n] {
+                for &(gb, rb) in &corners[..n] {
+                    add_lever_block(&mut h, &contract_pair(&d, &ga, &gb), ra, rb);
+                }
+            }
+        }
+        if lever < 0.0 {
+            h[(2, 2)] -= lever;
+        }
+        let gradient = Vec2::new(g.x, g.y).norm();
+        let mut out = Outcome {
+            gradient,
+            halved: false,
+            rejected: false,
+        };
+        let finite = gradient.is_finite() && g.z.is_finite();
+        // A NaN gradient or matrix fails here too: the body stays, the NaN is reported.
+        let Some(chol) = h.cholesky().filter(|_| finite) else {
+            out.rejected = finite;
+            return out;
+        };
+        let step = -chol.solve(&g);
+        let trial = |alpha: Real| BodyState {
+            position: p0 + Vec2::new(step.x, step.y) * alpha,
+            angle: start.angle + step.z * alpha,
+            ..start
+        };
+        if !search && !self.forbids_inversion {
+            *pose = trial(1.0);
+            body.place_positions(pose, x);
+            return out;
+        }
+        let inertia = 0.5 * mw * (p0 - tp).norm_squared()
+            + 0.5 * iw * (start.angle - ta) * (start.angle - ta)
+            + spring_energy;
+        let start_value = inertia + elastic;
+        let floor = 1e-12 * (inertia + elastic_magnitude + local_scale);
+        let mut alpha = 1.0;
+        for k in 0..=LOCAL_HALVINGS {
+            let q = trial(alpha);
+            body.place_positions(&q, x);
+            let ok = if search {
+                let e = self.body_potential(blk, body, &start, &q, x);
+                e.is_finite() && e <= start_value + floor
+            } else {
+                (blk.elements.iter()).all(|&(t, _)| {
+                    deformation_gradient(&self.els[t as usize], x).determinant() > 0.0
+                })
+            };
+            if ok {
+                *pose = q;
+                out.halved = k > 0;
+                return out;
+            }
+            alpha *= 0.5;
+        }
+        body.place_positions(&start, x);
+        out.rejected = true;
+        out
+    }
+}
+
+/// The free bodies' steps of one sweep, in order; returns the largest net force seen (NaN if
+/// any was NaN), merged with `largest`.
+fn body_sweep<E: Energy>(
+    local: &Local<'_, E>,
+    blocks: &[BodyBlock],
+    bodies: &[RigidBody],
+    poses: &mut [BodyState],
+    x: &mut [Vec2],
+    stats: &mut VbdStats,
+    mut largest: Real,
+) -> Real {
+    for blk in blocks {
+        let o = local.body_update(blk, &bodies[blk.body], &mut poses[blk.body], x);
+        if o.gradient.is_nan() || largest.is_nan() {
+            largest = Real::NAN;
+        } else {
+            largest = largest.max(o.gradient);
+        }
+        stats.halved += usize::from(o.halved);
+        stats.rejected += usize::from(o.rejected);
+    }
+    largest
 }
 
 /// The end of a step of the solvers that minimise implicit Euler's potential by iterations
@@ -520,10 +804,11 @@ pub(crate) fn inversion(els: &[PackedElement], x: &[Vec2]) -> Inversion {
 
 impl VbdStepper {
     /// A stepper for `model`: validates the parameters, sets up barrier contact, packs the
-    /// elements and colours the free vertices.
+    /// elements (of the elastic mesh) and colours the free vertices.
     pub fn new<E: Energy>(model: &Model<E>, params: VbdParams) -> Result<Self, SolverError> {
         params.validate()?;
-        let mesh = model.mesh();
+        // With rigid regions, the deformable triangles only (the same vertices).
+        let mesh = model.elastic_mesh();
         let n = mesh.n_vertices();
         let mut free = vec![true; n];
         for v in model.kinematics().vertices() {
@@ -542,7 +827,36 @@ impl VbdStepper {
             c.set_tether(10.0 * model.p_wave_modulus());
             c
         });
+        let els = pack(mesh, model.elastic_energies().tags());
+        let blocks = (model.rigid_bodies().iter().enumerate())
+            .filter(|(_, body)| body.is_free())
+            .map(|(b, body)| {
+                let mut touching: Vec<u32> = (body.interface.iter())
+                    .flat_map(|&v| mesh.adjacency().of(v as usize).iter().map(|&(t, _)| t))
+                    .collect();
+                touching.sort_unstable();
+                touching.dedup();
+                let elements = (touching.into_iter())
+                    .map(|t| {
+                        let idx = els[t as usize].idx;
+                        let mask = (0..3)
+                            .filter(|&k| model.rigid_body_of(idx[k] as usize) == Some(b))
+                            .fold(0u8, |m, k| m | (1 << k));
+                        (t, mask)
+                    })
+                    .collect();
+                BodyBlock {
+                    body: b,
+                    elements,
+                    forces: Vec::new(),
+                    target: (Vec2::zeros(), 0.0),
+                }
+            })
+            .collect();
         Ok(VbdStepper {
+            blocks,
+            rigid_new: Vec::new(),
+            rigid_prev: Vec::new(),
             contact,
             targets: Vec::new(),
             bodies_new: Vec::new(),
@@ -550,9 +864,9 @@ impl VbdStepper {
             h,
             decay: exp(-params.damping * h),
             params,
-            n_triangles: mesh.n_triangles(),
-            els: pack(mesh, model.energies().tags()),
-            moduli: (model.energies().energies().iter())
+            n_triangles: model.mesh().n_triangles(),
+            els,
+            moduli: (model.elastic_energies().energies().iter())
                 .map(|e| e.dpk1(&Mat2::identity())[(0, 0)].abs())
                 .collect(),
             colouring,
@@ -596,6 +910,64 @@ impl VbdStepper {
     /// after the state was replaced.
     pub fn reset(&mut self) {
         self.v_prev = None;
+    }
+
+    /// The free bodies' loads, inertial targets and first poses of a substep (see the module
+    /// docs) into `self.blocks` and `self.rigid_new`, their vertices placed in `self.x`.
+    /// `previous`: every body starts at its pose (with contact, or after a guess that inverted
+    /// a triangle).
+    fn body_guesses<E: Energy>(&mut self, model: &Model<E>, state: &State, previous: bool) {
+        let h = self.h;
+        let gravity = model.gravity();
+        self.rigid_new.clone_from(&state.rigid);
+        let have_prev = self.v_prev.is_some() && self.rigid_prev.len() == state.rigid.len();
+        for blk in &mut self.blocks {
+            let k = blk.body;
+            let body = &model.rigid_bodies()[k];
+            let s = state.rigid[k];
+            blk.forces.clear();
+            blk.forces.extend(
+                (model.external_forces().iter())
+                    .filter(|(v, _)| model.rigid_body_of(*v as usize) == Some(k)),
+            );
+            let (mut force, mut torque) = (Vec2::zeros(), 0.0);
+            for &(v, f) in &blk.forces {
+                force += f;
+                torque += cross(state.x[v as usize] - s.position, f);
+            }
+            let y = s.position + s.velocity * h;
+            blk.target = (y + gravity * (h * h), s.angle + s.angular_velocity * h);
+            let (position, angle) = match self.params.init {
+                _ if previous => (s.position, s.angle),
+                VbdInit::Previous => (s.position, s.angle),
+                VbdInit::Inertia => (
+                    blk.target.0 + force * (h * h / body.mass),
+                    blk.target.1 + torque * (h * h / body.inertia),
+                ),
+                VbdInit::Adaptive => {
+                    let a_ext = gravity + force / body.mass;
+                    let norm = a_ext.norm();
+                    let along = if norm > 0.0 {
+                        let dir = a_ext / norm;
+                        let along = if have_prev {
+                            ((s.velocity - self.rigid_prev[k]) / h)
+                                .dot(&dir)
+                                .clamp(0.0, norm)
+                        } else {
+                            norm
+                        };
+                        dir * along
+                    } else {
+                        Vec2::zeros()
+                    };
+                    (y + along * (h * h), blk.target.1)
+                }
+            };
+            let pose = &mut self.rigid_new[k];
+            pose.position = position;
+            pose.angle = angle;
+            body.place_positions(pose, &mut self.x);
+        }
     }
 
     /// The initial guess of a substep into `self.x` (free vertices; kinematic ones are placed
@@ -744,8 +1116,10 @@ impl Stepper for VbdStepper {
         if model.layout() != self.layout {
             // The free vertices changed (a pinning grab): colour them again.
             let v_prev = self.v_prev.take();
+            let rigid_prev = std::mem::take(&mut self.rigid_prev);
             *self = VbdStepper::new(model, self.params)?;
             self.v_prev = v_prev;
+            self.rigid_prev = rigid_prev;
         }
         let until = state.t + self.params.dt;
         let h = self.h;
@@ -763,9 +1137,16 @@ impl Stepper for VbdStepper {
             self.initial_guess(model, state);
             let kinematics = model.kinematics();
             kinematics.apply(t, h, until, &state.x, &mut self.x, &mut self.v_new);
+            let rigid = !self.blocks.is_empty();
+            if rigid {
+                self.body_guesses(model, state, self.contact.is_some());
+            }
             if self.forbids_inversion && inversion(&self.els, &self.x).inverted > 0 {
                 self.x.copy_from_slice(&state.x);
                 kinematics.apply(t, h, until, &state.x, &mut self.x, &mut self.v_new);
+                if rigid {
+                    self.body_guesses(model, state, true);
+                }
                 stats.fallback_guess = true;
             }
             if let Some(c) = self.contact.as_mut() {
@@ -784,9 +1165,9 @@ impl Stepper for VbdStepper {
                 .as_ref()
                 .map_or(0.0, |c| (CONTACT_MARGIN - 1.0) * c.d_hat());
             let local = Local {
-                energy: model.energies(),
+                energy: model.elastic_energies(),
                 els: &self.els,
-                adj: model.mesh().adjacency(),
+                adj: model.elastic_mesh().adjacency(),
                 masses: model.masses(),
                 w: 1.0 / (h * h),
                 target: &self.target,
@@ -820,6 +1201,18 @@ impl Stepper for VbdStepper {
                     &mut self.outcome,
                     &mut stats,
                 );
+                if rigid {
+                    // The free bodies, one after another, after the colours.
+                    residual = body_sweep(
+                        &local,
+                        &self.blocks,
+                        model.rigid_bodies(),
+                        &mut self.rigid_new,
+                        &mut self.x,
+                        &mut stats,
+                        residual,
+                    );
+                }
                 if let Some(c) = self.contact.as_mut() {
                     // The moving obstacles' poses: one block Newton step each sweep.
                     c.prepare(&self.x, None);
@@ -839,6 +1232,17 @@ impl Stepper for VbdStepper {
             // The adaptive guess of the next substep reads this substep's starting velocity.
             let prev_v = self.v_prev.get_or_insert_with(|| vec![Vec2::zeros(); n]);
             prev_v.copy_from_slice(&state.v);
+            if rigid {
+                self.rigid_prev.clear();
+                self.rigid_prev
+                    .extend(state.rigid.iter().map(|b| b.velocity));
+                // The bodies' velocities, as the vertices' (`commit_positions`).
+                for blk in &self.blocks {
+                    let (s, b) = (&state.rigid[blk.body], &mut self.rigid_new[blk.body]);
+                    b.velocity = (b.position - s.position) / h * self.decay;
+                    b.angular_velocity = (b.angle - s.angle) / h * self.decay;
+                }
+            }
             let bodies = match self.contact.as_mut() {
                 Some(c) => {
                     end_poses(c, model, state, h, &mut self.bodies_new);
@@ -854,7 +1258,7 @@ impl Stepper for VbdStepper {
                 &mut self.x,
                 &mut self.v_new,
                 bodies,
-                None,
+                rigid.then_some(&mut self.rigid_new),
                 h,
                 until,
                 self.decay,
@@ -944,7 +1348,7 @@ impl Solver for VbdStepper {
         summary: "Vertex Block Descent: Gauss-Seidel over vertices on implicit Euler's incremental potential, a 2x2 Newton step each, vertex colouring",
         paper: false,
         contact: true,
-        rigid_regions: false,
+        rigid_regions: true,
         implicit: true,
         iterations: true,
         substeps: true,
@@ -981,6 +1385,78 @@ mod tests {
         let (p00, p01, p11) = psd2(a, b, d);
         for (got, want) in [(p00, 3.0 * c * c), (p01, 3.0 * c * s), (p11, 3.0 * s * s)] {
             assert!((got - want).abs() < 1e-14, "{got} vs {want}");
+        }
+    }
+
+    /// A pinned beam with a free rigid block in the middle, sagging under gravity: every
+    /// initial guess, with or without the line search, reaches the same step (the body's block
+    /// descends the same potential), and the block stays rigid.
+    #[test]
+    fn a_free_body_block_converges_the_same_with_and_without_line_search() {
+        use crate::model::bc::Region;
+        use fem_core::PlaneModel;
+        use fem_core::energy::EnergyKind;
+        use fem_core::material::Material;
+        use fem_core::structured::{RectangleParams, rectangle};
+
+        let mesh = rectangle(&RectangleParams::new(2.0, 0.2, 20, 2)).unwrap();
+        let lame = Material::new(1e4, 0.3, 1.0)
+            .unwrap()
+            .lame(PlaneModel::PlaneStrain);
+        let energy = EnergyKind::NeoHookean.build(lame).unwrap();
+        let tags: Vec<u32> = (0..mesh.n_triangles())
+            .map(|t| {
+                let c = mesh.gather(t, mesh.vertices()).iter().sum::<Vec2>() / 3.0;
+                u32::from((c.x - 1.2).abs() < 0.3)
+            })
+            .collect();
+        let energies = ElementEnergies::new(vec![energy.clone(), energy], tags).unwrap();
+        let masses = mesh.lumped_masses_from_density(100.0).unwrap();
+        let mut model = Model::with_regions(mesh, energies, masses).unwrap();
+        model.make_rigid(1, 100.0).unwrap();
+        model.set_standard_gravity();
+        model
+            .pin(&Region::in_box(Vec2::new(0.0, 0.0), Vec2::new(0.0, 0.2)))
+            .unwrap();
+        assert!(model.rigid_bodies()[0].is_free());
+        let run = |init: VbdInit, line_search: bool| {
+            let params = VbdParams {
+                dt: 1e-2,
+                iterations: 400,
+                init,
+                line_search,
+                ..VbdParams::default()
+            };
+            let mut stepper = VbdStepper::new(&model, params).unwrap();
+            let mut state = State::at_rest(&model);
+            for _ in 0..5 {
+                stepper.step(&model, &mut state).unwrap();
+            }
+            state
+        };
+        let reference = run(VbdInit::Adaptive, false);
+        let body = &model.rigid_bodies()[0];
+        assert!(
+            reference.rigid[0].position.y < body.centroid.y - 1e-3,
+            "it sags"
+        );
+        for init in [VbdInit::Previous, VbdInit::Inertia, VbdInit::Adaptive] {
+            for line_search in [false, true] {
+                let state = run(init, line_search);
+                let gap = (state.x.iter().zip(&reference.x))
+                    .map(|(a, b)| (a - b).norm())
+                    .fold(0.0, Real::max);
+                let pose = (state.rigid[0].position - reference.rigid[0].position).norm()
+                    + (state.rigid[0].angle - reference.rigid[0].angle).abs();
+                assert!(
+                    gap < 1e-9 && pose < 1e-9,
+                    "{init:?} {line_search}: {gap:e} {pose:e}"
+                );
+                let frame = Frame::of(&state.rigid[0]);
+                for (&v, &r) in body.vertices.iter().zip(&body.offsets) {
+                    assert!((state.x[v as usize] - frame.apply(r)).norm() < 1e-15);
+                }
+            }
         }
     }
 }
