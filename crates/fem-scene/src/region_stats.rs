@@ -44,6 +44,10 @@ pub struct RegionSummary {
     pub poisson_ratio: f64,
     /// Density, kg/m^3.
     pub density: f64,
+    /// Whether the region is rigid (its elements carry no stress: every stress number reads
+    /// 0, and the peak's place is `null`; its bodies' loads are in `rigid_bodies`).
+    #[serde(default)]
+    pub rigid: bool,
     /// Rest area, m^2 (per unit thickness).
     pub area: f64,
     /// Largest element von Mises stress over the recorded frames, Pa.
@@ -85,6 +89,7 @@ impl RegionTracker {
                 youngs_modulus: m.youngs_modulus,
                 poisson_ratio: m.poisson_ratio,
                 density: m.density,
+                rigid: m.rigid,
                 area,
                 peak_von_mises: 0.0,
                 peak_von_mises_step: 0,

@@ -203,7 +203,7 @@ fn assert_peak_under_debris(r: &RunResult) {
         "peak over the run at {:?}, debris spans [{lo}, {hi}]",
         s.max_von_mises_at
     );
-    for region in &s.regions {
+    for region in s.regions.iter().filter(|r| !r.rigid) {
         let x = region.peak_von_mises_at[0];
         assert!(
             x >= lo - 0.05 && x <= hi + 0.05,
@@ -224,11 +224,113 @@ fn assert_peak_under_debris(r: &RunResult) {
 
 /// Case D on the built-in body with its skeleton: "the stress distribution on the leg when
 /// compressed by the debris": the peaks lie at the debris (see `assert_peak_under_debris`).
+/// The bones are rigid (the scene's default): ten bodies, which carry no stress.
 #[test]
 fn case_d_peak_von_mises_lies_under_the_debris() {
     let r = run("case-d", &[]);
     assert_eq!(r.summary.regions.len(), 2);
+    assert!(r.summary.regions[1].rigid);
+    assert_eq!(r.summary.regions[1].peak_von_mises, 0.0);
+    assert_eq!(r.summary.rigid_bodies.len(), 10);
     assert_peak_under_debris(&r);
+}
+
+/// The soft tissue's largest von Mises stress over the frames whose time lies in
+/// `[from, to]`, Pa.
+fn tissue_peak(r: &RunResult, from: f64, to: f64) -> f64 {
+    let soft: Vec<bool> = r.region_tags.iter().map(|&t| t == 0).collect();
+    (r.snapshots.iter())
+        .filter(|s| s.time >= from - 1e-12 && s.time <= to + 1e-12)
+        .flat_map(|s| s.von_mises.iter().zip(&soft).filter(|p| *p.1).map(|p| *p.0))
+        .filter(|v| v.is_finite())
+        .fold(0.0, f64::max)
+}
+
+fn run_kept(case: &str, overrides: &[&str]) -> RunResult {
+    let o: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();
+    let scene = load_case(case, &o).unwrap_or_else(|e| panic!("{e}"));
+    run_scene(
+        &scene,
+        &RunOptions {
+            threads: Some(1),
+            snapshot_every: Some(1),
+            ..RunOptions::default()
+        },
+    )
+    .unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// Rigid against elastic bone, every other setting equal (implicit Euler at 1/90 s, the
+/// scenes' own). At a contrast of 9,200 the bone's own compliance barely changes the tissue:
+/// - case D: the soft tissue's peak von Mises stress over the run and at rest agree within
+///   2 % (measured 0.25 % and 0.13 %), and the tissue's positions within 1e-4 m RMS at every
+///   frame (measured 1.1e-5 m): the bones are stocky and the debris presses the tissue, not a
+///   span of bone;
+/// - the lower-leg close-up: the tibia, held at its two end faces, spans 0.33 m under the slab
+///   and bends as a beam (about `P L^3 / (192 E I)` = 0.17 mm under the measured 134 kN/m with
+///   a 47 mm section, against a 3 mm squeeze: 6 %), which the rigid tibia cannot. So at full
+///   squeeze the rigid tibia's tissue peaks higher, by 5.5 % (measured); the test allows 8 %
+///   and requires the rigid peak to be the higher one. At rest after the lift they agree
+///   within 2 % (measured 0.48 %).
+#[test]
+fn rigid_bones_change_the_soft_tissues_stress_little() {
+    let rigid = run_kept("case-d", &[]);
+    let elastic = run_kept("case-d", &["regions.0.rigid=false"]);
+    let end = rigid.summary.simulated_seconds;
+    let rel = |a: f64, b: f64| (a - b).abs() / b;
+    let (pr, pe) = (
+        tissue_peak(&rigid, 0.0, end),
+        tissue_peak(&elastic, 0.0, end),
+    );
+    let (rr, re) = (
+        tissue_peak(&rigid, end, end),
+        tissue_peak(&elastic, end, end),
+    );
+    let soft: Vec<usize> = {
+        let mut used = vec![false; rigid.rest.len()];
+        for (t, &tag) in rigid.triangles.iter().zip(&rigid.region_tags) {
+            if tag == 0 {
+                t.iter().for_each(|&v| used[v as usize] = true);
+            }
+        }
+        (0..used.len()).filter(|&v| used[v]).collect()
+    };
+    let mut rms: f64 = 0.0;
+    for (a, b) in rigid.snapshots.iter().zip(&elastic.snapshots) {
+        let sq: f64 = (soft.iter())
+            .map(|&v| {
+                let (p, q) = (a.positions[v], b.positions[v]);
+                (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2)
+            })
+            .sum();
+        rms = rms.max((sq / soft.len() as f64).sqrt());
+    }
+    eprintln!(
+        "case-d: tissue peak {pr:.5e} / {pe:.5e} Pa over the run ({:.2e}), {rr:.5e} / {re:.5e} Pa at rest ({:.2e}), position RMS {rms:.2e} m",
+        rel(pr, pe),
+        rel(rr, re)
+    );
+    assert!(rel(pr, pe) < 0.02 && rel(rr, re) < 0.02);
+    assert!(rms < 1e-4, "{rms}");
+
+    let rigid = run_kept("lower-leg", &[]);
+    let elastic = run_kept("lower-leg", &["regions.0.rigid=false"]);
+    let end = rigid.summary.simulated_seconds;
+    let (sr, se) = (
+        tissue_peak(&rigid, 0.2, 0.8),
+        tissue_peak(&elastic, 0.2, 0.8),
+    );
+    let (rr, re) = (
+        tissue_peak(&rigid, end, end),
+        tissue_peak(&elastic, end, end),
+    );
+    eprintln!(
+        "lower-leg: tissue peak at full squeeze {sr:.5e} / {se:.5e} Pa ({:.2e}), at rest {rr:.5e} / {re:.5e} Pa ({:.2e})",
+        rel(sr, se),
+        rel(rr, re)
+    );
+    assert!(sr > se && rel(sr, se) < 0.08);
+    assert!(rel(rr, re) < 0.02);
 }
 
 /// Case D on the real MakeHuman body (`../shared/fixtures/human/makehuman_base.obj`,
