@@ -190,16 +190,16 @@ fn span_x(poly: &[[f64; 2]]) -> (f64, f64) {
 
 /// Checks of a settled case D run: stable, no inverted element, the debris resting on the leg
 /// (above the ground by more than a centimetre), and the stress peaks at the debris: the
-/// body's peak over the run within the debris' x-span, and, when the body has material
-/// regions, each region's peak within that span widened by 5 cm (on the built-in body the
-/// soft tissue's lies 2 cm beyond the slab's corner, at the distal end of the tibia).
+/// body's peak over the run and each elastic region's within the debris' x-span widened by
+/// 5 cm (on the built-in body the soft tissue's lies 2 cm beyond the slab's corner, at the
+/// distal end of the tibia; with elastic bone the body's peak was the bone's, under the slab).
 fn assert_peak_under_debris(r: &RunResult) {
     let s = &r.summary;
     assert!(!s.blew_up, "{:?}", s.blow_up_message);
     assert_eq!(s.inverted_elements, 0);
     let (lo, hi) = span_x(&r.final_obstacles[0]);
     assert!(
-        s.max_von_mises_at[0] >= lo && s.max_von_mises_at[0] <= hi,
+        s.max_von_mises_at[0] >= lo - 0.05 && s.max_von_mises_at[0] <= hi + 0.05,
         "peak over the run at {:?}, debris spans [{lo}, {hi}]",
         s.max_von_mises_at
     );
