@@ -22,7 +22,8 @@ use crate::util::{cargo_program, root};
 
 pub const TARGET: &str = "wasm32-unknown-unknown";
 
-/// The built-in cases the bit-identity check runs with their own settings, and steps.
+/// The built-in cases the bit-identity check runs with their own settings, and steps (case D
+/// with its rigid bones, the scene's default).
 const CASES: &[(&str, u64)] = &[("case-a", 500), ("case-d", 200)];
 
 /// Steps of case A under each solver of the registry (co-rotational, which every solver runs).
@@ -201,6 +202,19 @@ fn check_against_native(site: &Path) -> Result<(), String> {
             format!("solver.dt={}", 1.0 / 90.0),
         ]);
     }
+    // Case D's rigid bones under explicit at the soft tissue's own step (its rigid bodies
+    // driven by the summed nodal forces), and its elastic bones under the scene's solver.
+    checks.push(vec![
+        "case-d".into(),
+        "300".into(),
+        "solver.kind=\"explicit\"".into(),
+        "solver.dt=3.5e-5".into(),
+    ]);
+    checks.push(vec![
+        "case-d".into(),
+        CONTACT_STEPS.to_string(),
+        "regions.0.rigid=false".into(),
+    ]);
     for args in &checks {
         let wasm = output(
             Command::new(&node)

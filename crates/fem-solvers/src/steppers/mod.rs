@@ -99,7 +99,8 @@ pub(crate) fn refuse_free_rigid_bodies<E: Energy>(
         "solver",
         solver,
         format!(
-            "does not move rigid regions, and the model has {free} free rigid bodies: use {}, or pin the bodies, or make the regions elastic (rigid = false)",
+            "does not move rigid regions, and the model has {free} free rigid {}: use {}, or pin the bodies, or make the regions elastic (rigid = false)",
+            if free == 1 { "body" } else { "bodies" },
             supported.join(", ")
         ),
     ))

@@ -53,6 +53,26 @@
 //! within a colour no two constraints share a vertex, so parallel evaluation followed by
 //! application equals the in-place serial sweep, and Jacobi sums per vertex in element order.
 //!
+//! **Rigid regions** ([`crate::rigid::body`]; Müller, Macklin, Chentanez, Jeschke & Kim 2020,
+//! "Detailed rigid body simulation with extended position based dynamics"): only the
+//! deformable triangles ([`Model::elastic_mesh`]) are constraints. A free body is predicted as
+//! the vertices are (gravity, and the external forces on its vertices as a force and a torque
+//! about its centroid) and its vertices are placed on the predicted pose. A constraint with
+//! corners on a free body reads them from the body's pose and moves the body as one particle
+//! with its generalised inverse mass: with `G = sum_j grad_j C` and
+//! `T = sum_j (x_j - p) x grad_j C` over those corners, the denominator gets
+//! `|G|^2 / m + T^2 / I` in place of their `w_j |grad_j C|^2`, and the body moves by
+//! `dp = G dlambda / m`, `dtheta = T dlambda / I` (in 2D the angle is one number: the update
+//! is exact, only the constraint is linearised). All such constraints move the same body, so
+//! they leave the colouring (and Jacobi) and are projected serially, in triangle order, after
+//! each sweep's other constraints: states stay bit-identical on any thread count. After each
+//! sweep the bodies' vertices are placed on their poses; at the end of the substep a body's
+//! velocities are `(p - p_old) / h` and `(theta - theta_old) / h`, damped as the vertices', and
+//! the step's end places its vertices. Linear momentum is kept to round-off (the corrections
+//! are mass-weighted and the gradients sum to zero); angular momentum drifts by `O(h)`, as for
+//! the vertices alone (positions-based velocities). Contact projection treats slaved vertices
+//! as kinematic: it does not push a body. Without rigid regions nothing changes, bits included.
+//!
 //! **XPBD settings** ([`XpbdSchedule`], [`LambdaReset`]): "small steps" (Macklin et al. 2019)
 //! spends the `substeps x iterations` sweeps as that many substeps of one sweep; resetting the
 //! multipliers before every sweep is available only to show that it stiffens the body with the
@@ -81,7 +101,7 @@ use crate::model::Model;
 use crate::model::grab::Spring;
 use crate::model::limits;
 use crate::model::state::State;
-use crate::rigid::{BodyState, ObstacleMotion};
+use crate::rigid::{BodyState, Frame, ObstacleMotion, RigidBody, cross};
 use crate::steppers::colour::Colouring;
 use crate::steppers::commit::{Kinematic, StepEnd};
 use crate::steppers::registry::{Capabilities, Clock, Solver};
@@ -376,38 +396,182 @@ fn project_one<E: Energy>(
     let [i0, i1, i2] = el.idx;
     let (w0, w1, w2) = (w[i0 as usize], w[i1 as usize], w[i2 as usize]);
     let s = w0 * g0.norm_squared() + w1 * g1.norm_squared() + w2 * g2.norm_squared();
-    let (m, residual2) = match rule {
+    let (m, residual2) = match multiplier(rule, el.area, psi, s, scale, lambda) {
+        Ok(m) => m,
+        Err(residual2) => return skip(residual2),
+    };
+    Projection {
+        dx: [g0 * (w0 * m), g1 * (w1 * m), g2 * (w2 * m)],
+        active: true,
+        det,
+        residual2,
+    }
+}
+
+/// The factor `m` of a constraint's corrections `dx_j = w_j m grad_j (a psi)` and its squared
+/// residual, from the element's `a`, `psi` and `s = sum_j w_j |grad_j (a psi)|^2` (a free
+/// rigid body counts with its generalised inverse mass); updates the multiplier. `Err` (with
+/// the residual) when the constraint has no direction to move in (`s <= 0`).
+#[inline(always)]
+fn multiplier(
+    rule: Rule,
+    area: Real,
+    psi: Real,
+    s: Real,
+    scale: Real,
+    lambda: &mut Real,
+) -> Result<(Real, Real), Real> {
+    match rule {
         Rule::Pbd { stiffness } => {
-            let c = el.area * psi;
+            let c = area * psi;
             if s <= 0.0 {
-                return skip(c * c);
+                return Err(c * c);
             }
-            (-stiffness * scale * c / s, c * c)
+            Ok((-stiffness * scale * c / s, c * c))
         }
         Rule::Consistent { alpha_tilde } => {
             if s <= 0.0 {
-                return skip(0.0);
+                return Err(0.0);
             }
-            let c = (2.0 * el.area * psi).sqrt();
+            let c = (2.0 * area * psi).sqrt();
             let inv_c = 1.0 / c;
             let r = c + alpha_tilde * *lambda;
             let dl = -scale * r / (s * inv_c * inv_c + alpha_tilde);
             *lambda += dl;
-            (dl * inv_c, r * r)
+            Ok((dl * inv_c, r * r))
         }
         Rule::Literal { alpha_tilde } => {
             if s <= 0.0 {
-                return skip(0.0);
+                return Err(0.0);
             }
-            let c = el.area * psi;
+            let c = area * psi;
             let r = c + alpha_tilde * *lambda;
             let dl = -scale * r / (s + alpha_tilde);
             *lambda += dl;
-            (dl, r * r)
+            Ok((dl, r * r))
         }
+    }
+}
+
+/// Which corners of a constraint are slaved to a free rigid body, and their rest offsets from
+/// its centroid.
+#[derive(Clone, Copy, Debug)]
+struct BodyLink {
+    /// The free body of each corner ([`BodyLink::NONE`]: none; the corner is a vertex).
+    body: [u32; 3],
+    /// Each slaved corner's rest offset (zero for the others).
+    offset: [Vec2; 3],
+}
+
+impl BodyLink {
+    const NONE: u32 = u32::MAX;
+
+    /// The link of `el`, or `None` when no corner is slaved to a free body.
+    fn of<E: Energy>(model: &Model<E>, el: &PackedElement) -> Option<BodyLink> {
+        let bodies = model.rigid_bodies();
+        let mut link = BodyLink {
+            body: [Self::NONE; 3],
+            offset: [Vec2::zeros(); 3],
+        };
+        for (k, &v) in el.idx.iter().enumerate() {
+            if let Some(b) = model.rigid_body_of(v as usize)
+                && bodies[b].is_free()
+            {
+                let body = &bodies[b];
+                let i = body.vertices.binary_search(&v).expect("slaved vertex");
+                link.body[k] = b as u32;
+                link.offset[k] = body.offsets[i];
+            }
+        }
+        link.body.iter().any(|&b| b != Self::NONE).then_some(link)
+    }
+}
+
+/// Project one constraint with corners slaved to free rigid bodies (Müller et al. 2020), in
+/// place: slaved corners are read from their body's pose in `poses`, each body `b` enters the
+/// denominator with its generalised inverse mass along its generalised gradient
+/// (`|G|^2 / m_b + T^2 / I_b`, `G = sum grad_j`, `T = sum (x_j - p_b) x grad_j` over its
+/// corners) and moves by `dp = m G / m_b`, `dtheta = m T / I_b`; the other corners move as in
+/// [`project_one`].
+#[allow(clippy::too_many_arguments)]
+fn project_linked<E: Energy>(
+    energy: &ElementEnergies<E>,
+    el: &PackedElement,
+    link: &BodyLink,
+    x: &mut [Vec2],
+    w: &[Real],
+    bodies: &[RigidBody],
+    poses: &mut [BodyState],
+    rule: Rule,
+    psi_threshold: Real,
+    lambda: &mut Real,
+) -> Projection {
+    let idx = el.idx.map(|i| i as usize);
+    let mut xs = idx.map(|i| x[i]);
+    for k in 0..3 {
+        if link.body[k] != BodyLink::NONE {
+            xs[k] = Frame::of(&poses[link.body[k] as usize]).apply(link.offset[k]);
+        }
+    }
+    let local = PackedElement {
+        idx: [0, 1, 2],
+        ..*el
     };
+    let f = deformation_gradient(&local, &xs);
+    let det = f.determinant();
+    let skip = |residual2| Projection {
+        dx: [Vec2::zeros(); 3],
+        active: false,
+        det,
+        residual2,
+    };
+    let (psi, p) = el.energy(energy).psi_pk1(&f);
+    if psi <= psi_threshold {
+        return skip(0.0);
+    }
+    let (g1, g2) = energy_gradients(el, &p);
+    let g = [-(g1 + g2), g1, g2];
+    // The generalised gradients (G, T) of the (at most three) bodies, by first corner.
+    let mut wk = [0.0; 3];
+    let mut moved = [(BodyLink::NONE, Vec2::zeros(), 0.0); 3];
+    let mut s = 0.0;
+    for k in 0..3 {
+        let b = link.body[k];
+        if b == BodyLink::NONE {
+            wk[k] = w[idx[k]];
+            s += wk[k] * g[k].norm_squared();
+        } else {
+            let slot = moved
+                .iter()
+                .position(|e| e.0 == b || e.0 == BodyLink::NONE)
+                .expect("three corners");
+            let arm = xs[k] - poses[b as usize].position;
+            let e = &mut moved[slot];
+            e.0 = b;
+            e.1 += g[k];
+            e.2 += cross(arm, g[k]);
+        }
+    }
+    for &(b, gf, gt) in moved.iter().take_while(|e| e.0 != BodyLink::NONE) {
+        let (im, ii) = bodies[b as usize].inverse_mass();
+        s += gf.norm_squared() * im + gt * gt * ii;
+    }
+    let (m, residual2) = match multiplier(rule, el.area, psi, s, 1.0, lambda) {
+        Ok(m) => m,
+        Err(residual2) => return skip(residual2),
+    };
+    let dx = [g[0] * (wk[0] * m), g[1] * (wk[1] * m), g[2] * (wk[2] * m)];
+    for (&i, d) in idx.iter().zip(&dx) {
+        x[i] += d;
+    }
+    for &(b, gf, gt) in moved.iter().take_while(|e| e.0 != BodyLink::NONE) {
+        let (im, ii) = bodies[b as usize].inverse_mass();
+        let pose = &mut poses[b as usize];
+        pose.position += gf * (m * im);
+        pose.angle += gt * (m * ii);
+    }
     Projection {
-        dx: [g0 * (w0 * m), g1 * (w1 * m), g2 * (w2 * m)],
+        dx,
         active: true,
         det,
         residual2,
@@ -462,10 +626,17 @@ struct Engine {
     rule: Rule,
     n_triangles: usize,
     /// Elements in sweep order (coloured order for [`Ordering::Coloured`], else triangle
-    /// order) and the colour ranges into it (one range for the other orderings).
+    /// order) and the colour ranges into it (one range for the other orderings); the elements
+    /// touching a free rigid body follow, from `linked_start` on, in triangle order.
     elements: Vec<PackedElement>,
     ranges: Vec<(usize, usize)>,
     n_colours: usize,
+    /// Where the elements touching free rigid bodies start in `elements`, and their links.
+    linked_start: usize,
+    links: Vec<BodyLink>,
+    /// Jacobi with rigid bodies only: the vertex adjacency of the elements before
+    /// `linked_start` (the elastic mesh's is used otherwise).
+    jacobi_adjacency: Option<VertexAdjacency>,
     lambda: Vec<Real>,
     /// Zero the multipliers before every sweep ([`LambdaReset::Iteration`]).
     reset_lambda_each_sweep: bool,
@@ -480,6 +651,9 @@ struct Engine {
     /// per-vertex gather (see [`ColourScatter`]).
     colour_scatter: ColourScatter,
     bodies_pred: Vec<BodyState>,
+    /// The rigid regions' predicted and projected poses (entries of bodies that are not free
+    /// are unused).
+    rigid_pred: Vec<BodyState>,
     /// The multipliers of the grab's springs (one vector per spring), zeroed every substep.
     grab_lambda: Vec<Vec2>,
     /// Contact scratch and the last substep's contact records.
@@ -561,23 +735,64 @@ impl Engine {
         relaxation: Real,
         rule: Rule,
     ) -> Self {
-        let mesh = model.mesh();
-        let (elements, ranges, n_colours) = match ordering {
+        let mesh = model.elastic_mesh();
+        // Elements touching a free rigid body leave the sweep order and are projected
+        // serially after it (in triangle order): they all move the body.
+        let links: Vec<Option<BodyLink>> = if model.rigid_bodies().iter().any(|b| b.is_free()) {
+            model
+                .elements
+                .iter()
+                .map(|el| BodyLink::of(model, el))
+                .collect()
+        } else {
+            Vec::new()
+        };
+        let linked = |t: usize| links.get(t).is_some_and(|l| l.is_some());
+        let (mut elements, ranges) = match ordering {
             Ordering::Coloured => {
                 let c = Colouring::greedy(mesh);
-                let els = c
-                    .order
-                    .iter()
-                    .map(|&t| model.elements[t as usize])
-                    .collect();
-                let ranges = c.offsets.windows(2).map(|w| (w[0], w[1])).collect();
-                (els, ranges, c.n_colours())
+                let mut els = Vec::with_capacity(model.elements.len());
+                let mut ranges = Vec::with_capacity(c.n_colours());
+                for w in c.offsets.windows(2) {
+                    let start = els.len();
+                    els.extend(
+                        (c.order[w[0]..w[1]].iter())
+                            .filter(|&&t| !linked(t as usize))
+                            .map(|&t| model.elements[t as usize]),
+                    );
+                    if els.len() > start {
+                        ranges.push((start, els.len()));
+                    }
+                }
+                (els, ranges)
             }
-            _ => (model.elements.clone(), vec![(0, model.elements.len())], 1),
+            _ => {
+                let els: Vec<PackedElement> = (model.elements.iter().enumerate())
+                    .filter(|&(t, _)| !linked(t))
+                    .map(|(_, el)| *el)
+                    .collect();
+                let n = els.len();
+                (els, vec![(0, n)])
+            }
         };
+        let n_colours = match ordering {
+            Ordering::Coloured => ranges.len(),
+            _ => 1,
+        };
+        let linked_start = elements.len();
+        elements.extend(
+            (model.elements.iter().enumerate())
+                .filter(|&(t, _)| linked(t))
+                .map(|(_, el)| *el),
+        );
+        let jacobi_adjacency = (ordering == Ordering::Jacobi && linked_start < elements.len())
+            .then(|| {
+                let pure: Vec<bool> = (0..model.elements.len()).map(|t| !linked(t)).collect();
+                mesh.restricted(&pure).adjacency().clone()
+            });
+        let links: Vec<BodyLink> = links.into_iter().flatten().collect();
         let jacobi_scale = match ordering {
-            Ordering::Jacobi => model
-                .elements
+            Ordering::Jacobi => elements[..linked_start]
                 .iter()
                 .map(|el| {
                     let n = el
@@ -599,7 +814,7 @@ impl Engine {
             rest_threshold,
             ordering,
             rule,
-            n_triangles: mesh.n_triangles(),
+            n_triangles: model.mesh().n_triangles(),
             n_colours,
             lambda: Vec::new(),
             reset_lambda_each_sweep: false,
@@ -614,7 +829,11 @@ impl Engine {
             jacobi_scale,
             elements,
             ranges,
+            linked_start,
+            links,
+            jacobi_adjacency,
             bodies_pred: Vec::new(),
+            rigid_pred: Vec::new(),
             grab_lambda: Vec::new(),
             contact: ContactWorkspace::default(),
         }
@@ -682,6 +901,7 @@ impl Engine {
         model
             .kinematics()
             .apply(t, h, until, &state.x, &mut self.x_pred, &mut self.v_new);
+        self.predict_rigid(model, state, h);
         self.bodies_pred.clone_from(&state.bodies);
         for (obs, body) in model.obstacles().iter().zip(self.bodies_pred.iter_mut()) {
             match obs.motion() {
@@ -710,13 +930,19 @@ impl Engine {
                 self.grab_lambda.fill(Vec2::zeros());
             }
             stats = self.sweep(
-                model.energies(),
-                model.mesh().adjacency(),
+                model.elastic_energies(),
+                model.elastic_mesh().adjacency(),
+                model.rigid_bodies(),
                 w,
                 rule,
                 psi_threshold,
             );
             project_springs(springs, w, h, &mut self.x_pred, &mut self.grab_lambda);
+            for (body, b) in model.rigid_bodies().iter().zip(&self.rigid_pred) {
+                if body.is_free() {
+                    body.place_positions(b, &mut self.x_pred);
+                }
+            }
             if model.has_contact() {
                 contacts = project_contacts(
                     model.ground(),
@@ -752,13 +978,21 @@ impl Engine {
                 pred.angular_velocity = (pred.angle - body.angle) / h;
             }
         }
+        for (body, (pred, old)) in
+            (model.rigid_bodies().iter()).zip(self.rigid_pred.iter_mut().zip(&state.rigid))
+        {
+            if body.is_free() {
+                pred.velocity = (pred.position - old.position) * (decay / h);
+                pred.angular_velocity = (pred.angle - old.angle) * (decay / h);
+            }
+        }
         // A substep advances the time; the step counter moves once per step (in `step`).
         StepEnd {
             kinematics: Kinematic::Schedule { t, dt: h, until },
             x: &mut self.x_pred,
             v: &mut self.v_new,
             bodies: Some(&mut self.bodies_pred),
-            rigid: None,
+            rigid: Some(&mut self.rigid_pred),
             known_finite,
             inverted: stats.inv.inverted,
             min_det_f: stats.inv.min_det_f,
@@ -776,22 +1010,26 @@ impl Engine {
     }
 
     /// One sweep over all constraints in the configured order.
+    #[allow(clippy::too_many_arguments)]
     fn sweep<E: Energy>(
         &mut self,
         energy: &ElementEnergies<E>,
         adjacency: &VertexAdjacency,
+        bodies: &[RigidBody],
         w: &[Real],
         rule: Rule,
         psi_threshold: Real,
     ) -> SweepStats {
         let parallel = fem_core::par::current_num_threads() > 1;
         let mut total = SweepStats::EMPTY;
+        let ls = self.linked_start;
+        let adjacency = self.jacobi_adjacency.as_ref().unwrap_or(adjacency);
         match self.ordering {
             Ordering::GaussSeidel => {
                 serial_range(
                     energy,
-                    &self.elements,
-                    &mut self.lambda,
+                    &self.elements[..ls],
+                    &mut self.lambda[..ls],
                     &mut self.x_pred,
                     w,
                     rule,
@@ -843,7 +1081,7 @@ impl Engine {
                 }
             }
             Ordering::Jacobi => {
-                let els = &self.elements[..];
+                let els = &self.elements[..ls];
                 let nc = els.len().div_ceil(ELEMENT_CHUNK);
                 self.chunk_stats.clear();
                 self.chunk_stats.resize(nc, SweepStats::EMPTY);
@@ -863,14 +1101,14 @@ impl Engine {
                 let corr = &mut self.corrections[..els.len()];
                 if parallel {
                     corr.par_chunks_mut(ELEMENT_CHUNK)
-                        .zip(self.lambda.par_chunks_mut(ELEMENT_CHUNK))
+                        .zip(self.lambda[..ls].par_chunks_mut(ELEMENT_CHUNK))
                         .zip(els.par_chunks(ELEMENT_CHUNK))
                         .zip(self.chunk_stats.par_iter_mut())
                         .enumerate()
                         .for_each(|(c, (a, st))| body(c, a, st));
                 } else {
                     corr.chunks_mut(ELEMENT_CHUNK)
-                        .zip(self.lambda.chunks_mut(ELEMENT_CHUNK))
+                        .zip(self.lambda[..ls].chunks_mut(ELEMENT_CHUNK))
                         .zip(els.chunks(ELEMENT_CHUNK))
                         .zip(self.chunk_stats.iter_mut())
                         .enumerate()
@@ -907,7 +1145,65 @@ impl Engine {
                 }
             }
         }
+        // The elements touching free rigid bodies, serially in triangle order.
+        for ((els, links), lam) in (self.elements[ls..].chunks(ELEMENT_CHUNK))
+            .zip(self.links.chunks(ELEMENT_CHUNK))
+            .zip(self.lambda[ls..].chunks_mut(ELEMENT_CHUNK))
+        {
+            let mut st = SweepStats::EMPTY;
+            for ((el, link), l) in els.iter().zip(links).zip(lam) {
+                let p = project_linked(
+                    energy,
+                    el,
+                    link,
+                    &mut self.x_pred,
+                    w,
+                    bodies,
+                    &mut self.rigid_pred,
+                    rule,
+                    psi_threshold,
+                    l,
+                );
+                st.add(&p);
+            }
+            total.merge(&st);
+        }
         total
+    }
+
+    /// The rigid regions' free bodies take the vertices' inertial prediction (gravity, and
+    /// the external forces on their vertices as a wrench), and their vertices are placed on
+    /// the predicted poses.
+    fn predict_rigid<E: Energy>(&mut self, model: &Model<E>, state: &State, h: Real) {
+        let bodies = model.rigid_bodies();
+        self.rigid_pred.clone_from(&state.rigid);
+        if !bodies.iter().any(|b| b.is_free()) {
+            return;
+        }
+        let g = model.gravity();
+        for (body, b) in bodies.iter().zip(self.rigid_pred.iter_mut()) {
+            if body.is_free() {
+                b.velocity += g * h;
+            }
+        }
+        for &(v, fe) in model.external_forces() {
+            if let Some(k) = model.rigid_body_of(v as usize)
+                && bodies[k].is_free()
+            {
+                let (im, ii) = bodies[k].inverse_mass();
+                let arm = state.x[v as usize] - state.rigid[k].position;
+                let b = &mut self.rigid_pred[k];
+                b.velocity += fe * (im * h);
+                b.angular_velocity += cross(arm, fe) * (ii * h);
+            }
+        }
+        for (body, b) in bodies.iter().zip(self.rigid_pred.iter_mut()) {
+            if body.is_free() {
+                b.position += b.velocity * h;
+                b.angle += b.angular_velocity * h;
+                body.place_positions(b, &mut self.x_pred);
+            }
+        }
     }
 }
 
@@ -1062,7 +1358,7 @@ const POSITION_BASED: Capabilities = Capabilities {
     summary: "",
     paper: true,
     contact: true,
-    rigid_regions: false,
+    rigid_regions: true,
     implicit: false,
     iterations: true,
     substeps: true,

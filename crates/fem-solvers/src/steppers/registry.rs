@@ -228,7 +228,7 @@ macro_rules! registry {
                 Ok(match self {
                     $(SolverParams::$variant(p) => {
                         if !<$ty as Solver>::CAPABILITIES.rigid_regions {
-                            super::refuse_free_rigid_bodies(model, <$ty as Solver>::NAME)?;
+                            $crate::steppers::refuse_free_rigid_bodies(model, <$ty as Solver>::NAME)?;
                         }
                         AnyStepper::$variant(Box::new(<$ty as Solver>::build(model, p)?))
                     })+
