@@ -114,6 +114,18 @@ pub struct ElementStress {
     pub strain: (Real, Real),
 }
 
+impl ElementStress {
+    /// An element that does not deform (a rigid region's): no stress, `det F = 1`, no strain.
+    pub const UNSTRESSED: ElementStress = ElementStress {
+        cauchy: Mat2::new(0.0, 0.0, 0.0, 0.0),
+        sigma_zz: 0.0,
+        von_mises: 0.0,
+        principal: (0.0, 0.0),
+        det_f: 1.0,
+        strain: (0.0, 0.0),
+    };
+}
+
 /// The principal nominal strains of `F` (see [`ElementStress::strain`]): the square roots of
 /// the eigenvalues of `C = F^T F`, minus one, largest first.
 pub fn principal_strains(f: &Mat2) -> (Real, Real) {

@@ -28,7 +28,7 @@
 use fem_core::PlaneModel;
 use fem_core::dispatch_energy;
 use fem_core::energy::{Energy, EnergyKind};
-use fem_core::math::{Mat2, Real, Vec2};
+use fem_core::math::{Real, Vec2};
 use fem_core::mesh::Mesh;
 use fem_core::stress::{ElementStress, VonMisesFormula, populate_element_stress, vertex_average};
 use fem_solvers::diagnostics::rigid_loads;
@@ -502,14 +502,7 @@ impl Recorder {
         // A rigid triangle carries no stress (its F is a rotation, up to round-off).
         for (s, &tag) in self.stress.iter_mut().zip(&self.rigid_tags) {
             if tag > 0 {
-                *s = ElementStress {
-                    cauchy: Mat2::zeros(),
-                    sigma_zz: 0.0,
-                    von_mises: 0.0,
-                    principal: (0.0, 0.0),
-                    det_f: 1.0,
-                    strain: (0.0, 0.0),
-                };
+                *s = ElementStress::UNSTRESSED;
             }
         }
         self.von_mises.clear();

@@ -172,6 +172,16 @@ fn restarts(old: &Scene, new: &Scene) -> bool {
         || old.initial != new.initial
         || old.obstacles != new.obstacles
         || old.ground != new.ground
+        // Rigid regions are bodies of the state: making one rigid or elastic restarts.
+        || rigid_regions(old) != rigid_regions(new)
+}
+
+/// The regions made rigid, with what they claim.
+fn rigid_regions(s: &Scene) -> Vec<(&Option<Vec<[f64; 2]>>, &Vec<String>)> {
+    (s.regions.iter())
+        .filter(|r| r.rigid)
+        .map(|r| (&r.polygon, &r.mesh_regions))
+        .collect()
 }
 
 impl App {
@@ -428,6 +438,12 @@ impl App {
             self.formula,
             &mut self.stress,
         );
+        // Rigid regions carry no stress (their F is a rotation, up to round-off).
+        for body in self.model.rigid_bodies() {
+            for &t in &body.triangles {
+                self.stress[t as usize] = ElementStress::UNSTRESSED;
+            }
+        }
         let hud = &mut self.hud;
         let contacts = self.stepper.contacts();
         hud.contacts = contacts.len();
@@ -588,6 +604,8 @@ impl App {
             "solver.dt" => number(Some(s.solver.dt)),
             "material.youngs_modulus" => number(Some(m.youngs_modulus)),
             "material.poisson_ratio" => number(Some(m.poisson_ratio)),
+            // Whether the first `[[regions]]` entry (the bones of the built-in cases) is rigid.
+            "regions.0.rigid" => s.regions.first().map(|r| r.rigid.to_string()),
             _ => key
                 .strip_prefix("solver.")
                 .and_then(|k| s.solver.get(k))

@@ -480,10 +480,15 @@ function syncControls(get) {
     $(id).value = v === "" ? "" : Number(v);
     $(id).disabled = v === "";
   }
+  // Rigid or elastic bones: the first [[regions]] entry's `rigid` (disabled without regions).
+  const bones = get("regions.0.rigid");
+  $("bones").value = bones === "" ? "true" : bones;
+  $("bones").disabled = bones === "";
 }
 for (const [id, key] of Object.entries(numeric)) {
   $(id).onchange = (e) => panes.forEach((p) => p.set(key, String(Number(e.target.value))));
 }
+$("bones").onchange = (e) => panes.forEach((p) => p.set("regions.0.rigid", e.target.value));
 
 // What every pane runs: a built-in case, or a dropped scene (and the files it names).
 let source = { kind: "case", name: new URLSearchParams(location.search).get("case") || "case-a" };
@@ -512,7 +517,7 @@ async function addPane() {
   // A new pane starts with the first pane's choices, then differs where the user changes it;
   // every pane restarts so that they run side by side from the same start.
   if (panes.length > 1) {
-    for (const key of Object.values(numeric).concat(["energy", "solver.kind"])) {
+    for (const key of Object.values(numeric).concat(["energy", "solver.kind", "regions.0.rigid"])) {
       const v = panes[0].io.get(key);
       if (v !== "") p.set(key, v);
     }

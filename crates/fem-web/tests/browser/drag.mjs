@@ -9,7 +9,7 @@
 // - a recorded drag replays in every pane from the start,
 // - and the console has no error.
 // Then it measures case D in real time (the page's own counters), checks that its bones are
-// drawn flat, and saves a screenshot of each (SCREENSHOT.png and SCREENSHOT-case-d.png).
+// drawn flat, rigid (no stress) by default and elastic (stressed) one select away, and saves a screenshot of each (SCREENSHOT.png and SCREENSHOT-case-d.png).
 //
 //   node drag.mjs SITE_DIR [SCREENSHOT.png]   (run by `cargo xtask web --browser-test`)
 import http from "node:http";
@@ -310,10 +310,22 @@ try {
     await page.screenshot({ path: shotD });
     console.log(`screenshot: ${shotD}`);
   }
+  // The bones are rigid (the scene's default): they carry no stress, so the body's peak is
+  // the soft tissue's.
   check(
-    bone.hud[22] > 0 && bone.hud[22] < bone.hud[7] && bone.text.includes("soft-tissue"),
-    `the HUD gives the soft tissue's peak (${(bone.hud[22] / 1000).toFixed(1)} kPa) beside the bones' (${(bone.hud[7] / 1000).toFixed(1)} kPa)`,
+    bone.hud[22] > 0 && bone.hud[22] === bone.hud[7] && bone.text.includes("soft-tissue"),
+    `the HUD gives the soft tissue's peak (${(bone.hud[22] / 1000).toFixed(1)} kPa), the rigid bones none (body ${(bone.hud[7] / 1000).toFixed(1)} kPa)`,
   );
+  // Elastic bones, one select away: loaded, they are more stressed than the tissue.
+  await page.select("#bones", "false");
+  await frames(30);
+  const elastic = await page.evaluate(() => Array.from(window.fem.hud(0)));
+  check(
+    elastic[22] > 0 && elastic[22] < elastic[7],
+    `elastic bones carry stress: the soft tissue's peak ${(elastic[22] / 1000).toFixed(1)} kPa beside the body's ${(elastic[7] / 1000).toFixed(1)} kPa`,
+  );
+  await page.select("#bones", "true");
+  await frames(30);
   const hud = await page.evaluate(async () => {
     const rows = [];
     for (let i = 0; i < 60; i++) {
