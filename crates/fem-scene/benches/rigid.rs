@@ -3,9 +3,9 @@
 //! - `explicit-frame/rigid`: one 1/90 s frame of explicit FEM at the soft tissue's own
 //!   critical step (the steps of a frame: `ceil((1/90) / dt_crit)`, 318 at 35 us): the cost of
 //!   running case D explicitly in real time;
-//! - `explicit-step/{rigid,elastic}` and `implicit-step/{rigid,elastic}`: one step of the same
-//!   mesh with the bones rigid and elastic (explicit at 35 us, implicit Euler at 1/90 s from a
-//!   settled state): the cost of rigid regions against the same mesh with none (the rigid run
+//! - `explicit-step/{rigid,elastic}`, `implicit-step/...` and `vbd-step/...`: one step of the
+//!   same mesh with the bones rigid and elastic (explicit at 35 us; implicit Euler and VBD, 10
+//!   sweeps, at 1/90 s from a settled state): the cost of rigid regions against the same mesh with none (the rigid run
 //!   also skips the bones' elements).
 //!
 //! Each bench restarts from the same state every 50 steps so the workload stays steady.
@@ -86,16 +86,18 @@ fn bench(c: &mut Criterion) {
                 })
             });
             let start = settled(m, 30);
-            let mut s = stepper(m, SolverKind::Implicit, FRAME);
-            let mut state = start.clone();
-            group.bench_function(format!("implicit-step/{name}"), |b| {
-                b.iter(|| {
-                    if state.step >= start.step + 50 {
-                        state = start.clone();
-                    }
-                    s.step(m, &mut state).unwrap();
-                })
-            });
+            for kind in [SolverKind::Implicit, SolverKind::Vbd] {
+                let mut s = stepper(m, kind, FRAME);
+                let mut state = start.clone();
+                group.bench_function(format!("{kind}-step/{name}"), |b| {
+                    b.iter(|| {
+                        if state.step >= start.step + 50 {
+                            state = start.clone();
+                        }
+                        s.step(m, &mut state).unwrap();
+                    })
+                });
+            }
         }
         group.finish();
     }

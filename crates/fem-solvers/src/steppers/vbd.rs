@@ -651,7 +651,10 @@ impl<E: Energy> Local<'_, E> {
                 elastic_magnitude += el.area * psi.abs();
             }
             let p = energy.pk1(&f);
-            let d = energy.dpk1_projected(&f) * el.area;
+            // The exact tangent first (no eigen-decomposition per element: the body's
+            // inertia usually keeps the 3x3 block positive definite); the projected one below
+            // only when it does not.
+            let d = energy.dpk1(&f) * el.area;
             let mut corners = [(Vec2::zeros(), Vec2::zeros()); 3];
             let mut n = 0;
             for k in 0..3u8 {
@@ -671,6 +674,41 @@ impl<E: Energy> Local<'_, E> {
         }
         if lever < 0.0 {
             h[(2, 2)] -= lever;
+        }
+        if h.cholesky().is_none() {
+            // Indefinite with the exact tangents: rebuild the block from PSD-projected ones.
+            h = Matrix3::from_diagonal(&Vector3::new(mw, mw, iw));
+            if !self.springs.is_empty() {
+                for &v in &body.vertices {
+                    if let Some(s) = spring_of(self.springs, v as usize) {
+                        let r = x[v as usize] - p0;
+                        add_lever_block(&mut h, &(Mat2::identity() * s.stiffness), r, r);
+                    }
+                }
+            }
+            for &(t, mask) in &blk.elements {
+                let el = &self.els[t as usize];
+                let d = el
+                    .energy(self.energy)
+                    .dpk1_projected(&deformation_gradient(el, x))
+                    * el.area;
+                let mut corners = [(Vec2::zeros(), Vec2::zeros()); 3];
+                let mut n = 0;
+                for k in 0..3u8 {
+                    if mask & (1 << k) != 0 {
+                        corners[n] = (corner_gradient(el, k), x[el.idx[k as usize] as usize] - p0);
+                        n += 1;
+                    }
+                }
+                for &(ga, ra) in &corners[..n] {
+                    for &(gb, rb) in &corners[..n] {
+                        add_lever_block(&mut h, &contract_pair(&d, &ga, &gb), ra, rb);
+                    }
+                }
+            }
+            if lever < 0.0 {
+                h[(2, 2)] -= lever;
+            }
         }
         let gradient = Vec2::new(g.x, g.y).norm();
         let mut out = Outcome {
