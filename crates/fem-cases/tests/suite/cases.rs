@@ -235,6 +235,49 @@ fn case_d_peak_von_mises_lies_under_the_debris() {
     assert_peak_under_debris(&r);
 }
 
+/// Case D with rigid bones under explicit FEM: the summary reports the critical time step of
+/// the deformable elements (35 us: the soft tissue's; elastic bone made it 0.36 us), and
+/// explicit runs case D at that step, without a stability warning and without blowing up
+/// (0.1 s: the slab lands on the shin).
+#[test]
+fn explicit_runs_case_d_at_the_soft_tissues_critical_step() {
+    let probe = run("case-d", &["solver.steps=1"]);
+    let dt = probe.summary.critical_time_step;
+    assert!(dt > 2e-5 && dt < 5e-5, "critical step {dt} s");
+    let steps = (0.1 / dt).ceil() as u64;
+    let r = run(
+        "case-d",
+        &[
+            "solver.kind=\"explicit\"",
+            &format!("solver.dt={dt}"),
+            &format!("solver.steps={steps}"),
+            "output.frame_every=100",
+        ],
+    );
+    let s = &r.summary;
+    eprintln!(
+        "case-d explicit at dt = {dt:.4e} s ({steps} steps): blew up {}, warning {:?}, soft tissue peak {:.4e} Pa",
+        s.blew_up, s.time_step_warning, s.max_von_mises
+    );
+    assert!(!s.blew_up, "{:?}", s.blow_up_message);
+    assert_eq!(s.critical_time_step, dt);
+    assert!(s.time_step_warning.is_none(), "{:?}", s.time_step_warning);
+    assert_eq!(s.inverted_elements, 0);
+    assert!(s.contact_peak_force > 0.0, "the slab lands");
+    // The same step with elastic bones is far above their limit: the summary warns.
+    let elastic = run(
+        "case-d",
+        &[
+            "regions.0.rigid=false",
+            "solver.kind=\"explicit\"",
+            &format!("solver.dt={dt}"),
+            "solver.steps=1",
+        ],
+    );
+    assert!(elastic.summary.critical_time_step < 1e-6);
+    assert!(elastic.summary.time_step_warning.is_some());
+}
+
 /// The soft tissue's largest von Mises stress over the frames whose time lies in
 /// `[from, to]`, Pa.
 fn tissue_peak(r: &RunResult, from: f64, to: f64) -> f64 {
