@@ -30,7 +30,7 @@ use fem_scene::build::{
 };
 use fem_scene::cases::{case_text, load_case};
 use fem_scene::drag::{DragAction, DragEvent, DragPlayer, DragTrajectory, Hand, Held};
-use fem_scene::scene::{LoadedScene, Scene, parse_scene};
+use fem_scene::scene::{LoadedScene, MaterialRegionSpec, Scene, parse_scene};
 use fem_solvers::{AnyStepper, BodyState, Clock, ContactPressure, Model, State, Stepper};
 
 /// The most simulated time one frame may owe, s: a frame after a long pause (a hidden tab,
@@ -176,12 +176,9 @@ fn restarts(old: &Scene, new: &Scene) -> bool {
         || rigid_regions(old) != rigid_regions(new)
 }
 
-/// The regions made rigid, with what they claim.
-fn rigid_regions(s: &Scene) -> Vec<(&Option<Vec<[f64; 2]>>, &Vec<String>)> {
-    (s.regions.iter())
-        .filter(|r| r.rigid)
-        .map(|r| (&r.polygon, &r.mesh_regions))
-        .collect()
+/// The `[[regions]]` entries made rigid.
+fn rigid_regions(s: &Scene) -> Vec<&MaterialRegionSpec> {
+    s.regions.iter().filter(|r| r.rigid).collect()
 }
 
 impl App {
