@@ -9,12 +9,18 @@ use fem_cases::table1::{ENERGIES, FRAMES, PAPER_MM, ordering_holds, table1, tip_
 use fem_scene::cases::load_case;
 
 fn run(case: &str, overrides: &[&str]) -> RunResult {
+    run_with(case, overrides, None)
+}
+
+/// `case` with `overrides` on one thread, keeping every `snapshot_every`-th frame in memory.
+fn run_with(case: &str, overrides: &[&str], snapshot_every: Option<usize>) -> RunResult {
     let o: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();
     let scene = load_case(case, &o).unwrap_or_else(|e| panic!("{e}"));
     run_scene(
         &scene,
         &RunOptions {
             threads: Some(1),
+            snapshot_every,
             ..RunOptions::default()
         },
     )
@@ -290,17 +296,7 @@ fn tissue_peak(r: &RunResult, from: f64, to: f64) -> f64 {
 }
 
 fn run_kept(case: &str, overrides: &[&str]) -> RunResult {
-    let o: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();
-    let scene = load_case(case, &o).unwrap_or_else(|e| panic!("{e}"));
-    run_scene(
-        &scene,
-        &RunOptions {
-            threads: Some(1),
-            snapshot_every: Some(1),
-            ..RunOptions::default()
-        },
-    )
-    .unwrap_or_else(|e| panic!("{e}"))
+    run_with(case, overrides, Some(1))
 }
 
 /// Rigid against elastic bone, every other setting equal (implicit Euler at 1/90 s, the

@@ -603,6 +603,58 @@ impl<E: Energy> Local<'_, E> {
         e
     }
 
+    /// A free body's 3x3 block at positions `x` (centroid `p0`): its inertia, its grab springs,
+    /// `sum J_a^T (dP/dF contracted) J_b` over the body's corners of each of its triangles
+    /// (PSD-projected tangents when `projected`), and the rotation's curvature `-lever` where
+    /// it is positive.
+    fn body_block(
+        &self,
+        blk: &BodyBlock,
+        body: &RigidBody,
+        x: &[Vec2],
+        p0: Vec2,
+        lever: Real,
+        projected: bool,
+    ) -> Matrix3<Real> {
+        let (mw, iw) = (body.mass * self.w, body.inertia * self.w);
+        let mut h = Matrix3::from_diagonal(&Vector3::new(mw, mw, iw));
+        if !self.springs.is_empty() {
+            for &v in &body.vertices {
+                if let Some(s) = spring_of(self.springs, v as usize) {
+                    let r = x[v as usize] - p0;
+                    add_lever_block(&mut h, &(Mat2::identity() * s.stiffness), r, r);
+                }
+            }
+        }
+        for &(t, mask) in &blk.elements {
+            let el = &self.els[t as usize];
+            let energy = el.energy(self.energy);
+            let f = deformation_gradient(el, x);
+            let d = if projected {
+                energy.dpk1_projected(&f)
+            } else {
+                energy.dpk1(&f)
+            } * el.area;
+            let mut corners = [(Vec2::zeros(), Vec2::zeros()); 3];
+            let mut n = 0;
+            for k in 0..3u8 {
+                if mask & (1 << k) != 0 {
+                    corners[n] = (corner_gradient(el, k), x[el.idx[k as usize] as usize] - p0);
+                    n += 1;
+                }
+            }
+            for &(ga, ra) in &corners[..n] {
+                for &(gb, rb) in &corners[..n] {
+                    add_lever_block(&mut h, &contract_pair(&d, &ga, &gb), ra, rb);
+                }
+            }
+        }
+        if lever < 0.0 {
+            h[(2, 2)] -= lever;
+        }
+        h
+    }
+
     /// One Newton step on a free body's pose (see the module docs): `pose` moves and the
     /// body's vertices in `x` are placed on it. The outcome's gradient is the net force's norm.
     fn body_update(
@@ -677,38 +729,7 @@ impl<E: Energy> Local<'_, E> {
         }
         if h.cholesky().is_none() {
             // Indefinite with the exact tangents: rebuild the block from PSD-projected ones.
-            h = Matrix3::from_diagonal(&Vector3::new(mw, mw, iw));
-            if !self.springs.is_empty() {
-                for &v in &body.vertices {
-                    if let Some(s) = spring_of(self.springs, v as usize) {
-                        let r = x[v as usize] - p0;
-                        add_lever_block(&mut h, &(Mat2::identity() * s.stiffness), r, r);
-                    }
-                }
-            }
-            for &(t, mask) in &blk.elements {
-                let el = &self.els[t as usize];
-                let d = el
-                    .energy(self.energy)
-                    .dpk1_projected(&deformation_gradient(el, x))
-                    * el.area;
-                let mut corners = [(Vec2::zeros(), Vec2::zeros()); 3];
-                let mut n = 0;
-                for k in 0..3u8 {
-                    if mask & (1 << k) != 0 {
-                        corners[n] = (corner_gradient(el, k), x[el.idx[k as usize] as usize] - p0);
-                        n += 1;
-                    }
-                }
-                for &(ga, ra) in &corners[..n] {
-                    for &(gb, rb) in &corners[..n] {
-                        add_lever_block(&mut h, &contract_pair(&d, &ga, &gb), ra, rb);
-                    }
-                }
-            }
-            if lever < 0.0 {
-                h[(2, 2)] -= lever;
-            }
+            h = self.body_block(blk, body, x, p0, lever, true);
         }
         let gradient = Vec2::new(g.x, g.y).norm();
         let mut out = Outcome {
