@@ -237,6 +237,20 @@ pub(crate) fn check_finite_vec(field: &str, v: fem_core::math::Vec2) -> Result<(
     }
 }
 
+/// A relative residual tolerance of an iterative solver, in `[0, 1)` (0: a fixed count of
+/// iterations).
+pub(crate) fn check_residual_tolerance(field: &str, tolerance: Real) -> Result<(), SolverError> {
+    if (0.0..1.0).contains(&tolerance) {
+        Ok(())
+    } else {
+        Err(SolverError::invalid(
+            field,
+            readable(tolerance),
+            "must be in [0, 1) (relative to the residual's scale; 0 runs every iteration)",
+        ))
+    }
+}
+
 /// A Chebyshev spectral radius estimate `rho`, in `[0, 1)` (0 turns the acceleration off).
 pub(crate) fn check_rho(field: &str, rho: Real) -> Result<(), SolverError> {
     if (0.0..1.0).contains(&rho) {

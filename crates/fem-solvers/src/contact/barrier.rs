@@ -172,6 +172,8 @@ pub(crate) struct BarrierContact {
     corners: Vec<(Vec2, Vec2)>,
     fill: Vec<u32>,
     still: Vec<Vec2>,
+    /// The points' Jacobians of [`BarrierContact::gradient`].
+    jac: [Vec<(Dof, Vec2)>; 3],
 }
 
 /// `R(theta) l` and its derivative `perp(R l)`.
@@ -289,6 +291,7 @@ impl BarrierContact {
             corners: Vec::new(),
             fill: Vec::new(),
             still: Vec::new(),
+            jac: Default::default(),
         }
     }
 
@@ -708,6 +711,27 @@ impl BarrierContact {
         hess: Option<&mut dyn FnMut(Dof, Dof, Real)>,
     ) {
         let mut jac: [Vec<(Dof, Vec2)>; 3] = Default::default();
+        self.derivatives_with(x, q, grad, hess, &mut jac);
+    }
+
+    /// The gradient of the contact energy at `(x, self.q)` through `grad`, as
+    /// [`BarrierContact::derivatives`] gives it, without allocating (the points' Jacobians
+    /// reuse a buffer): the residual test of the solvers that iterate.
+    pub(crate) fn gradient(&mut self, x: &[Vec2], grad: &mut dyn FnMut(Dof, Real)) {
+        let mut jac = std::mem::take(&mut self.jac);
+        self.derivatives_with(x, &self.q, grad, None, &mut jac);
+        self.jac = jac;
+    }
+
+    /// [`BarrierContact::derivatives`] with the points' Jacobians in `jac`.
+    fn derivatives_with(
+        &self,
+        x: &[Vec2],
+        q: &[[Real; 3]],
+        grad: &mut dyn FnMut(Dof, Real),
+        hess: Option<&mut dyn FnMut(Dof, Dof, Real)>,
+        jac: &mut [Vec<(Dof, Vec2)>; 3],
+    ) {
         let mut noop = |_: Dof, _: Dof, _: Real| {};
         let want_h = hess.is_some();
         let hess: &mut dyn FnMut(Dof, Dof, Real) = match hess {
@@ -719,11 +743,11 @@ impl BarrierContact {
                 continue;
             };
             let hp = if want_h { project_psd(&h) } else { h };
-            self.scatter(pair, q, &g, want_h.then_some(&hp), grad, hess, &mut jac);
+            self.scatter(pair, q, &g, want_h.then_some(&hp), grad, hess, jac);
         }
         for lag in &self.lags {
             let (g, h) = self.friction_derivatives(lag, x, q);
-            self.scatter(&lag.pair, q, &g, want_h.then_some(&h), grad, hess, &mut jac);
+            self.scatter(&lag.pair, q, &g, want_h.then_some(&h), grad, hess, jac);
         }
         for b in &self.bodies {
             let p = q[b.obstacle];

@@ -911,12 +911,7 @@ impl NewtonSolver {
             contact.as_deref().map(|c| (c, &c.q[..])),
             (&rigid, &rq),
         );
-        let load: Real = p.load.iter().map(|f| f.norm_squared()).sum::<Real>().sqrt();
-        // The force scale: the first residual, the load, and the elastic forces on the free
-        // vertices, which at equilibrium balance the load and the contact forces (a body held
-        // pressed by an obstacle starts a step nearly balanced, with a tiny first residual,
-        // under kilonewtons of contact force).
-        let target = params.tolerance * residual.max(load).max(self.elastic_force).max(1e-12);
+        let target = params.tolerance * force_scale(residual, p.load, self.elastic_force);
         report.residuals.push(residual);
         report.potentials.push(phi);
         // Positions are absolute coordinates, so forces carry a round-off floor of about
@@ -1077,6 +1072,19 @@ impl NewtonSolver {
         report.inverted = inverted;
         Ok(report)
     }
+}
+
+/// The force scale a relative residual tolerance is measured against, N: the largest of the
+/// first residual `first` (the gradient's norm over the free degrees of freedom at the start
+/// of the solve), the norm of the external load `load` (every vertex), the norm of the elastic
+/// forces on the free degrees of freedom at the start `elastic` (at equilibrium they balance
+/// the load and the contact forces: a body held pressed by an obstacle starts a step nearly
+/// balanced, with a tiny first residual, under kilonewtons of contact force), and 1e-12 N.
+/// Newton's test ([`NewtonParams::tolerance`]), shared by the iterative solvers that stop at a
+/// residual tolerance (VBD, Projective Dynamics, quasi-Newton).
+pub(crate) fn force_scale(first: Real, load: &[Vec2], elastic: Real) -> Real {
+    let load: Real = load.iter().map(|f| f.norm_squared()).sum::<Real>().sqrt();
+    first.max(load).max(elastic).max(1e-12)
 }
 
 /// The diagonal of the bounding box of `x`, m.

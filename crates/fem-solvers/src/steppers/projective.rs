@@ -27,13 +27,27 @@
 //! as in [`crate::vbd`]; it does not change the fixed point, and a `rho` above the iterations'
 //! spectral radius makes them diverge.
 //!
+//! **Residual tolerance** (`tolerance`, scene key `residual_tolerance`; 0 = off, the
+//! default). With a positive tolerance the step evaluates, at its initial guess and after each
+//! iteration, the norm of the incremental potential's gradient over the free vertices (N),
+//! `g = m / h^2 (x - x_hat) - f + sum_e a_e P_e g_e + k (x - goal)`, and stops once it is at
+//! most `tolerance` times Newton's force scale ([`crate::newton::NewtonParams::tolerance`]: the
+//! largest of the first residual, the external load, the elastic forces on the free vertices
+//! at the initial guess, and 1e-12 N); `iterations` is then the most iterations, and the report
+//! gives the iterations done (global solves) and that norm. The test reads the next
+//! iteration's local step: each triangle's `a P = (w1 + w2) F - (w1 p1 + w2 p2)` comes from its
+//! projections, so a test costs a pass over the triangles and one over the vertices and no
+//! polar decomposition, except the last (at the final positions), whose local step has no
+//! global step after it. With tolerance 0 nothing of this runs: the iterations, the bits and
+//! the report are those of a fixed count.
+//!
 //! Other energies are not sums of projective terms and are refused at construction (the
 //! quasi-Newton solver runs them with this matrix as its initial Hessian). Contact is not
 //! handled yet (refused, as for implicit Euler). The step's residual is the largest position
-//! change of its last iteration, m.
+//! change of its last iteration, m (with a positive tolerance: the gradient norm above, N).
 //!
 //! Registered as `pd` ([`Solver`]); scene keys `dt`, `iterations`, `damping`,
-//! `chebyshev_rho`.
+//! `chebyshev_rho`, `residual_tolerance`.
 
 use fem_core::energy::Energy;
 use fem_core::math::{Mat2, Real, Vec2, exp};
@@ -41,13 +55,18 @@ use fem_core::par::prelude::*;
 use fem_core::polar::Polar2;
 
 use super::{Stepper, check_step_inputs};
-use crate::error::{SolverError, check_count, check_non_negative, check_positive, check_rho};
+use crate::error::{
+    SolverError, check_count, check_non_negative, check_positive, check_residual_tolerance,
+    check_rho,
+};
 use crate::kernel::{
     ELEMENT_CHUNK, PackedElement, VERTEX_CHUNK, corner_gradient, deformation_gradient, pack,
 };
 use crate::model::Model;
+use crate::model::grab::spring_of;
 use crate::model::limits;
 use crate::model::state::State;
+use crate::optim::newton::force_scale;
 use crate::optim::pd_system::{PdSystem, element_lame};
 use crate::steppers::implicit::external_load;
 use crate::steppers::registry::{Capabilities, Clock, Solver};
@@ -71,6 +90,14 @@ pub struct PdParams {
     /// Chebyshev's spectral radius estimate `rho`, in `[0, 1)`; 0 turns the acceleration off.
     /// Default 0.
     pub chebyshev_rho: Real,
+    /// Relative residual tolerance in `[0, 1)`, dimensionless (scene key
+    /// `residual_tolerance`): when positive, the step stops iterating once the gradient of its
+    /// incremental potential over the free vertices (N) is at most `tolerance` times the force
+    /// scale (Newton's: the largest of the first residual, the external load, the elastic
+    /// forces at the start, 1e-12 N); `iterations` is then the most iterations. 0 runs exactly
+    /// `iterations` iterations and evaluates no gradient. Default 0.
+    #[cfg_attr(feature = "serde", serde(rename = "residual_tolerance"))]
+    pub tolerance: Real,
 }
 
 impl Default for PdParams {
@@ -80,6 +107,7 @@ impl Default for PdParams {
             iterations: 10,
             damping: 0.0,
             chebyshev_rho: 0.0,
+            tolerance: 0.0,
         }
     }
 }
@@ -100,7 +128,8 @@ impl PdParams {
             limits::MAX_ITERATIONS,
         )?;
         check_non_negative(&field("damping"), self.damping)?;
-        check_rho(&field("chebyshev_rho"), self.chebyshev_rho)
+        check_rho(&field("chebyshev_rho"), self.chebyshev_rho)?;
+        check_residual_tolerance(&field("residual_tolerance"), self.tolerance)
     }
 }
 
@@ -130,6 +159,13 @@ pub struct PdStepper {
     chebyshev: Chebyshev,
     /// The model layout the matrix was factorised for.
     layout: u64,
+    /// The residual test's buffers (sized only when the tolerance is positive): per triangle
+    /// `a P = (w1 + w2) F - (w1 p1 + w2 p2)`, and per vertex the elastic gradient
+    /// `sum_e a_e P_e g`.
+    stress: Vec<Mat2>,
+    elastic: Vec<Vec2>,
+    /// The force scale of the last step's residual test, N (0 when the tolerance is 0).
+    force_scale: Real,
 }
 
 impl PdStepper {
@@ -196,6 +232,17 @@ impl PdStepper {
             v_new: vec![Vec2::zeros(); n],
             rhs_v: vec![Vec2::zeros(); n],
             chebyshev: Chebyshev::default(),
+            stress: if params.tolerance > 0.0 {
+                vec![Mat2::zeros(); mesh.n_triangles()]
+            } else {
+                Vec::new()
+            },
+            elastic: if params.tolerance > 0.0 {
+                vec![Vec2::zeros(); n]
+            } else {
+                Vec::new()
+            },
+            force_scale: 0.0,
         })
     }
 
@@ -211,8 +258,21 @@ impl PdStepper {
         self.system.factorisations()
     }
 
+    /// The force scale of the last step's residual test, N: with a positive tolerance the
+    /// step's residual is at most `tolerance` times it when the iterations stopped early. 0
+    /// when the tolerance is 0.
+    pub fn force_scale(&self) -> Real {
+        self.force_scale
+    }
+
     /// One local-global iteration from `self.x`; returns the largest position change, m.
     fn iterate<E: Energy>(&mut self, model: &Model<E>, w: Real) -> Real {
+        self.local_step(model, w);
+        self.global_step()
+    }
+
+    /// The local step at `self.x` (the projections) and the global step's right-hand sides.
+    fn local_step<E: Energy>(&mut self, model: &Model<E>, w: Real) {
         // Local: the projections, in parallel over fixed chunks (independent per triangle).
         let x = &self.x;
         self.projections
@@ -262,6 +322,12 @@ impl PdStepper {
             self.rhs[n + k] = r.y;
         }
         self.system.move_kinematic_to_rhs(&self.x, &mut self.rhs);
+    }
+
+    /// The global step from the right-hand sides of [`PdStepper::local_step`]: the new free
+    /// positions into `self.x`; returns the largest position change, m.
+    fn global_step(&mut self) -> Real {
+        let n = self.system.n_free();
         self.system.solve(&mut self.rhs);
         let mut change: Real = 0.0;
         for (k, &v) in self.free.iter().enumerate() {
@@ -275,6 +341,62 @@ impl PdStepper {
             self.x[v as usize] = p;
         }
         change
+    }
+
+    /// The residual test at `self.x`, after [`PdStepper::local_step`] there: the norm of the
+    /// gradient of the step's incremental potential over the free vertices, N,
+    /// `g = m w (x - x_hat) - f + sum_e a_e P_e g_e + k (x - goal)`, with each triangle's
+    /// `a P = (w1 + w2) F - (w1 p1 + w2 p2)` from the local step's projections (the
+    /// co-rotational energy's exact `P`: no further polar decomposition); with `elastic`, also
+    /// the norm of the elastic forces on the free vertices (the force scale's third term), else
+    /// 0. Parallel over fixed chunks, summed serially in vertex order.
+    fn gradient_norm<E: Energy>(
+        &mut self,
+        model: &Model<E>,
+        w: Real,
+        elastic: bool,
+    ) -> (Real, Real) {
+        let x = &self.x;
+        self.stress
+            .par_chunks_mut(ELEMENT_CHUNK)
+            .zip(self.projections.par_chunks(ELEMENT_CHUNK))
+            .zip(self.els.par_chunks(ELEMENT_CHUNK))
+            .zip(self.w_mu.par_chunks(ELEMENT_CHUNK))
+            .zip(self.w_lambda.par_chunks(ELEMENT_CHUNK))
+            .for_each(|((((out, proj), els), w1), w2)| {
+                for ((((q, p), el), w1), w2) in out.iter_mut().zip(proj).zip(els).zip(w1).zip(w2) {
+                    *q = deformation_gradient(el, x) * (w1 + w2) - p;
+                }
+            });
+        let adj = model.mesh().adjacency();
+        let (stress, els) = (&self.stress, &self.els);
+        self.elastic
+            .par_chunks_mut(VERTEX_CHUNK)
+            .enumerate()
+            .for_each(|(c, out)| {
+                for (k, e) in out.iter_mut().enumerate() {
+                    let mut s = Vec2::zeros();
+                    for &(t, corner) in adj.of(c * VERTEX_CHUNK + k) {
+                        s += stress[t as usize] * corner_gradient(&els[t as usize], corner);
+                    }
+                    *e = s;
+                }
+            });
+        let (masses, springs) = (model.masses(), model.springs());
+        let (mut sq, mut elastic_sq) = (0.0, 0.0);
+        for &v in &self.free {
+            let v = v as usize;
+            let e = self.elastic[v];
+            let mut g = (x[v] - self.target[v]) * (masses[v] * w) - self.load[v] + e;
+            if let Some(s) = spring_of(springs, v) {
+                g += (x[v] - s.goal) * s.stiffness;
+            }
+            sq += g.norm_squared();
+            if elastic {
+                elastic_sq += e.norm_squared();
+            }
+        }
+        (sq.sqrt(), elastic_sq.sqrt())
     }
 }
 
@@ -316,12 +438,40 @@ impl Stepper for PdStepper {
             self.chebyshev.start(&self.x);
         }
         let mut residual = 0.0;
-        for _ in 0..self.params.iterations {
-            residual = self.iterate(model, w);
-            if rho > 0.0 {
-                // The co-rotational energy is finite under inversion: no restart needed.
-                self.chebyshev
-                    .apply(rho, &mut self.x, &self.free, &self.els, false);
+        let mut iterations = 0;
+        let tolerance = self.params.tolerance;
+        if tolerance == 0.0 {
+            for _ in 0..self.params.iterations {
+                residual = self.iterate(model, w);
+                if rho > 0.0 {
+                    // The co-rotational energy is finite under inversion: no restart needed.
+                    self.chebyshev
+                        .apply(rho, &mut self.x, &self.free, &self.els, false);
+                }
+            }
+            iterations = self.params.iterations;
+        } else {
+            // The residual test reads the local step of the iteration that follows it (its
+            // projections give each triangle's P), so it costs no polar decomposition of its
+            // own; the last one, at the final positions, has no global step after it.
+            let mut goal = 0.0;
+            loop {
+                self.local_step(model, w);
+                let (g, elastic) = self.gradient_norm(model, w, iterations == 0);
+                if iterations == 0 {
+                    self.force_scale = force_scale(g, &self.load, elastic);
+                    goal = tolerance * self.force_scale;
+                }
+                residual = g;
+                if g <= goal || iterations == self.params.iterations {
+                    break;
+                }
+                self.global_step();
+                iterations += 1;
+                if rho > 0.0 {
+                    self.chebyshev
+                        .apply(rho, &mut self.x, &self.free, &self.els, false);
+                }
             }
         }
         let inv = commit_positions(
@@ -340,7 +490,7 @@ impl Stepper for PdStepper {
         Ok(StepReport {
             min_det_f: inv.min_det_f,
             inverted: inv.inverted,
-            iterations: self.params.iterations,
+            iterations,
             residual,
             contacts: 0,
         })

@@ -19,10 +19,12 @@
 //! - a pair is kept only when `s . y > 0` (curvature), so `H` stays positive definite.
 //!
 //! It stops after `iterations` iterations, or earlier when the gradient's norm falls below
-//! `tolerance` times the force scale (the larger of the first gradient and the external load),
-//! the same test as Newton's ([`crate::newton`]). Unlike implicit Euler, not reaching the
-//! tolerance is not an error: a real-time step has a fixed budget, and the report's residual
-//! says how far it got. With enough iterations it reaches Newton's step to Newton's tolerance
+//! `tolerance` times the force scale (the largest of the first gradient, the external load,
+//! the elastic forces on the free vertices at the start and 1e-12 N), the same test as
+//! Newton's ([`crate::newton`]). Unlike implicit Euler, not reaching the tolerance is not an
+//! error: a real-time step has a fixed budget, and the report's residual says how far it got:
+//! the step's iterations are those taken (a line search that found no acceptable step counts
+//! and ends the step), its residual the gradient's norm at the positions it ends at, N. With enough iterations it reaches Newton's step to Newton's tolerance
 //! for every energy (`tests/suite/quasi_newton.rs`).
 //!
 //! Contact is not handled yet (refused, as for implicit Euler).
@@ -41,7 +43,7 @@ use crate::model::Model;
 use crate::model::grab::spring_of;
 use crate::model::limits;
 use crate::model::state::State;
-use crate::optim::newton::Potential;
+use crate::optim::newton::{Potential, force_scale};
 use crate::optim::pd_system::{PdSystem, element_lame};
 use crate::steppers::implicit::external_load;
 use crate::steppers::registry::{Capabilities, Clock, Solver};
@@ -132,6 +134,9 @@ pub struct QuasiNewtonReport {
     pub evaluations: usize,
     /// Whether the starting guess was replaced by the current positions.
     pub fallback_guess: bool,
+    /// The force scale of the residual test, N (Newton's: the largest of the first gradient,
+    /// the external load, the elastic forces on the free vertices at the start, 1e-12 N).
+    pub force_scale: Real,
 }
 
 /// L-BFGS with the Projective Dynamics matrix; see the module docs.
@@ -428,14 +433,15 @@ impl Stepper for QuasiNewtonStepper {
         }
         self.pairs = 0;
         self.head = 0;
-        let load_norm = self
-            .free
-            .iter()
-            .map(|&v| self.load[v as usize].norm_squared())
+        // Newton's force scale: the first gradient, the load, and the elastic forces on the
+        // free vertices at the start (`self.forces`, from the evaluation above).
+        let elastic = (self.free.iter())
+            .map(|&v| self.forces[v as usize].norm_squared())
             .sum::<Real>()
             .sqrt();
         let mut gnorm = dot(&self.g, &self.g).sqrt();
-        let scale = gnorm.max(load_norm);
+        let scale = force_scale(gnorm, &self.load, elastic);
+        report.force_scale = scale;
         report.residuals.push(gnorm);
         while report.iterations < self.params.iterations && energy.is_finite() {
             if gnorm <= self.params.tolerance * scale {

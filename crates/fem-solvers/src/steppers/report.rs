@@ -10,13 +10,20 @@ pub struct StepReport {
     pub min_det_f: Real,
     /// Elements with `det F <= 0` in that pass.
     pub inverted: usize,
-    /// Constraint iterations performed (summed over substeps; 0 for explicit), or Newton
-    /// iterations (implicit).
+    /// Iterations performed, summed over substeps (0 for explicit): constraint sweeps (PBD,
+    /// XPBD), vertex sweeps (VBD), local-global iterations (PD), L-BFGS iterations
+    /// (quasi-Newton), Newton iterations (implicit, static). With a residual tolerance (VBD,
+    /// PD, XPBD `residual_tolerance`, quasi-Newton `tolerance`) the iterations actually done,
+    /// at most the maximum; without, VBD, PD and XPBD do exactly `iterations` per substep.
     pub iterations: usize,
-    /// Constraint residual of the last iteration (0 for explicit): PBD `sqrt(sum C^2)`, XPBD
+    /// The residual of the last iteration (0 for explicit): PBD `sqrt(sum C^2)`, XPBD
     /// `sqrt(sum (C + alpha~ lambda)^2)`, both over the constraints evaluated in that
-    /// iteration, in the constraint's units; implicit: the Newton residual (gradient norm over
-    /// the free degrees of freedom, N).
+    /// iteration, in the constraint's units; implicit, static and quasi-Newton: the gradient
+    /// norm over the free degrees of freedom, N. VBD and PD with a positive
+    /// `residual_tolerance`: that gradient norm of the incremental potential at the step's end
+    /// (VBD: of its last substep), N; with tolerance 0, VBD the largest vertex gradient (or
+    /// free body's net force) its last sweep met before each update, N, and PD the largest
+    /// position change of its last iteration, m.
     pub residual: Real,
     /// Contact pairs detected (in the last pass): vertices in the ground or an obstacle and
     /// obstacle corners in soft boundary edges ([`crate::Stepper::contacts`] lists them).

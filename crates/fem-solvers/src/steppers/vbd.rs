@@ -98,9 +98,27 @@
 //! its vertices. Contact acts on the soft vertices only: the barrier and friction of a body's
 //! slaved vertices are ignored (they are neither pushed nor checked by the CCD).
 //!
+//! **Residual tolerance** (`tolerance`, scene key `residual_tolerance`; 0 = off, the
+//! default). With a positive tolerance each substep evaluates, at its initial guess and after
+//! each sweep (with its free bodies' and obstacles' steps and Chebyshev's extrapolation), the
+//! norm of the gradient of the potential the sweeps descend over the free degrees of freedom
+//! (N): the free vertices' `m / h^2 (x - x_hat) - f + dPsi/dx + k (x - goal)` plus their
+//! contact pairs' barrier and friction terms, each free body's three reduced components
+//! `sum_v J_v^T g_v` plus its inertia (its slaved vertices' contact left out, as its block leaves
+//! it out), and the moving obstacles' poses. It stops sweeping once that norm is at most
+//! `tolerance` times Newton's force scale ([`crate::newton::NewtonParams::tolerance`]: the
+//! largest of the first residual, the norm of the external load, the norm of the elastic forces
+//! on the free vertices and bodies at the initial guess, and 1e-12 N); `iterations` is then the
+//! most sweeps per substep, and the step's report gives the sweeps done (summed over substeps)
+//! and that norm. One evaluation costs one elastic force assembly (a `P` per triangle, where a
+//! sweep takes a `P` and a corner block per triangle corner), the contact gradient and a pass
+//! over the vertices; nothing is allocated. With tolerance 0 no gradient is evaluated and the
+//! sweeps, the bits and the report are those of a fixed count.
+//!
 //! Registered as `vbd` ([`Solver`]); scene keys `dt`, `substeps`, `iterations`, `damping`,
-//! `init`, `chebyshev_rho`, `line_search`.
+//! `init`, `chebyshev_rho`, `line_search`, `residual_tolerance`.
 
+use fem_core::assembly::{Scratch, populate_forces};
 use fem_core::energy::{ElementEnergies, Energy};
 use fem_core::math::{Mat2, Mat4, Real, Vec2, exp, vec_index};
 use fem_core::mesh::VertexAdjacency;
@@ -109,8 +127,11 @@ use nalgebra::{Matrix3, Vector3};
 
 use super::{Stepper, check_step_inputs};
 use crate::contact::Contact;
-use crate::contact::barrier::{BarrierContact, end_poses, step_targets};
-use crate::error::{SolverError, check_count, check_non_negative, check_positive, check_rho};
+use crate::contact::barrier::{BarrierContact, Dof, end_poses, step_targets};
+use crate::error::{
+    SolverError, check_count, check_non_negative, check_positive, check_residual_tolerance,
+    check_rho,
+};
 use crate::kernel::{
     ELEMENT_CHUNK, Inversion, PackedElement, corner_gradient, deformation_gradient, pack,
 };
@@ -118,6 +139,7 @@ use crate::model::Model;
 use crate::model::grab::{Spring, spring_of};
 use crate::model::limits;
 use crate::model::state::State;
+use crate::optim::newton::force_scale;
 use crate::rigid::{BodyState, Frame, RigidBody, cross};
 use crate::steppers::colour::VertexColouring;
 use crate::steppers::commit::{Kinematic, StepEnd};
@@ -174,6 +196,14 @@ pub struct VbdParams {
     /// Backtrack each vertex step until its local potential does not increase. Default false
     /// (the paper's full Newton steps, halved only to keep triangles uninverted).
     pub line_search: bool,
+    /// Relative residual tolerance in `[0, 1)`, dimensionless (scene key
+    /// `residual_tolerance`): when positive, a substep stops sweeping once the gradient of its
+    /// incremental potential over the free degrees of freedom (N) is at most `tolerance` times
+    /// the force scale (Newton's: the largest of the first residual, the external load, the
+    /// elastic forces at the start, 1e-12 N); `iterations` is then the most sweeps. 0 runs
+    /// exactly `iterations` sweeps and evaluates no gradient. Default 0.
+    #[cfg_attr(feature = "serde", serde(rename = "residual_tolerance"))]
+    pub tolerance: Real,
 }
 
 impl Default for VbdParams {
@@ -186,6 +216,7 @@ impl Default for VbdParams {
             init: VbdInit::default(),
             chebyshev_rho: 0.0,
             line_search: false,
+            tolerance: 0.0,
         }
     }
 }
@@ -207,7 +238,8 @@ impl VbdParams {
             limits::MAX_ITERATIONS,
         )?;
         check_non_negative(&field("damping"), self.damping)?;
-        check_rho(&field("chebyshev_rho"), self.chebyshev_rho)
+        check_rho(&field("chebyshev_rho"), self.chebyshev_rho)?;
+        check_residual_tolerance(&field("residual_tolerance"), self.tolerance)
     }
 }
 
@@ -222,6 +254,9 @@ pub struct VbdStats {
     pub chebyshev_restarts: usize,
     /// Whether an initial guess was replaced by the previous positions.
     pub fallback_guess: bool,
+    /// The force scale of the last substep's residual test, N (0 when the tolerance is 0):
+    /// the step's residual is at most `tolerance` times it when the sweeps stopped early.
+    pub force_scale: Real,
 }
 
 /// Vertex Block Descent; see the module docs.
@@ -266,6 +301,18 @@ pub struct VbdStepper {
     /// The rigid bodies' velocities at the start of the last substep (adaptive guess, read
     /// when `v_prev` is set).
     rigid_prev: Vec<Vec2>,
+    /// The buffers of the residual test (sized only when the tolerance is positive).
+    gradient: GradientBuffers,
+}
+
+/// The buffers of VBD's residual test, reused every sweep.
+#[derive(Debug, Default)]
+struct GradientBuffers {
+    /// Elastic forces per vertex (then minus the contact gradient on the soft vertices), N.
+    forces: Vec<Vec2>,
+    scratch: Scratch,
+    /// The contact gradient on the moving obstacles' poses.
+    extra: Vec<Real>,
 }
 
 /// A free rigid body as one block of the sweeps (see the module docs).
@@ -808,6 +855,95 @@ fn body_sweep<E: Energy>(
     largest
 }
 
+/// The residual test of a substep: the norm of the gradient of its incremental potential at
+/// `x` over the free degrees of freedom, N, the potential VBD descends: the free vertices
+/// `free` (inertia with weight `w = 1 / h^2` about `target`, the load `load`, the elastic
+/// forces, the grab's springs, and the barrier and friction terms of their contact pairs), each
+/// free body of `blocks` at its pose in `poses` as its three reduced components
+/// `sum_v J_v^T g_v` plus its inertia (its slaved vertices' contact ignored, as its block
+/// ignores it), and the moving obstacles' poses (their inertia or tether, weight, and contact).
+/// With `elastic`, also the norm of the elastic forces on the free vertices and the free
+/// bodies' vertices (the force scale's third term), else 0. Every sum runs in a fixed order
+/// (the elastic forces are fem-core's, bit-identical for any thread count); nothing is
+/// allocated after the first call.
+#[allow(clippy::too_many_arguments)]
+fn gradient_norm<E: Energy>(
+    model: &Model<E>,
+    x: &[Vec2],
+    (w, target, load): (Real, &[Vec2], &[Vec2]),
+    free: &[u32],
+    blocks: &[BodyBlock],
+    poses: &[BodyState],
+    contact: Option<&mut BarrierContact>,
+    buf: &mut GradientBuffers,
+    elastic: bool,
+) -> (Real, Real) {
+    let forces = &mut buf.forces;
+    populate_forces(
+        model.elastic_mesh(),
+        model.elastic_energies(),
+        x,
+        forces,
+        &mut buf.scratch,
+    );
+    let (masses, springs) = (model.masses(), model.springs());
+    let mut elastic_sq = 0.0;
+    if elastic {
+        for &v in free {
+            elastic_sq += forces[v as usize].norm_squared();
+        }
+    }
+    let mut sq = 0.0;
+    for blk in blocks {
+        let body = &model.rigid_bodies()[blk.body];
+        let pose = &poses[blk.body];
+        let p0 = pose.position;
+        let (tp, ta) = blk.target;
+        let (mw, iw) = (body.mass * w, body.inertia * w);
+        let mut g = Vector3::new(
+            mw * (p0.x - tp.x),
+            mw * (p0.y - tp.y),
+            iw * (pose.angle - ta),
+        );
+        let mut lever = 0.0;
+        for &(v, f) in &blk.forces {
+            add_lever_gradient(&mut g, &mut lever, -f, x[v as usize] - p0);
+        }
+        for &v in &body.vertices {
+            let (xv, f) = (x[v as usize], forces[v as usize]);
+            let mut gv = -f;
+            if let Some(s) = spring_of(springs, v as usize) {
+                gv += (xv - s.goal) * s.stiffness;
+            }
+            add_lever_gradient(&mut g, &mut lever, gv, xv - p0);
+            if elastic {
+                elastic_sq += f.norm_squared();
+            }
+        }
+        sq += g.norm_squared();
+    }
+    if let Some(c) = contact {
+        let extra = &mut buf.extra;
+        extra.clear();
+        extra.resize(c.n_extra(), 0.0);
+        c.gradient(x, &mut |d, g| match d {
+            // As a force, with the elastic ones (read below for the free vertices only).
+            Dof::Soft(i) => forces[i / 2][i % 2] -= g,
+            Dof::Extra(k) => extra[k] += g,
+        });
+        sq += extra.iter().map(|g| g * g).sum::<Real>();
+    }
+    for &v in free {
+        let v = v as usize;
+        let mut g = (x[v] - target[v]) * (masses[v] * w) - load[v] - forces[v];
+        if let Some(s) = spring_of(springs, v) {
+            g += (x[v] - s.goal) * s.stiffness;
+        }
+        sq += g.norm_squared();
+    }
+    (sq.sqrt(), elastic_sq.sqrt())
+}
+
 /// The end of a step of the solvers that minimise implicit Euler's potential by iterations
 /// (VBD, Projective Dynamics, quasi-Newton): the inversion statistics of the new positions
 /// `x`, the velocities `(x - x_t) / h` damped by `decay` into `v_new`, and the commit (kinematic
@@ -940,6 +1076,14 @@ impl VbdStepper {
             v_prev: None,
             stats: VbdStats::default(),
             layout: model.layout(),
+            gradient: GradientBuffers {
+                forces: if params.tolerance > 0.0 {
+                    vec![Vec2::zeros(); n]
+                } else {
+                    Vec::new()
+                },
+                ..GradientBuffers::default()
+            },
         })
     }
 
@@ -1184,8 +1328,10 @@ impl Stepper for VbdStepper {
         let h = self.h;
         let n = model.mesh().n_vertices();
         let rho = self.params.chebyshev_rho;
+        let tolerance = self.params.tolerance;
         let mut stats = VbdStats::default();
         let mut residual = 0.0;
+        let mut sweeps = 0;
         let mut inv = Inversion::EMPTY;
         external_load(model, &mut self.load);
         for sub in 0..self.params.substeps {
@@ -1243,7 +1389,31 @@ impl Stepper for VbdStepper {
             if rho > 0.0 {
                 self.chebyshev.start(&self.x);
             }
+            // The residual test (tolerance > 0 only): the gradient's norm at the initial guess
+            // sets the force scale, and may already meet it.
+            let mut goal = 0.0;
+            let mut converged = false;
+            if tolerance > 0.0 {
+                let (first, elastic) = gradient_norm(
+                    model,
+                    &self.x,
+                    (1.0 / (h * h), &self.target, &self.load),
+                    &self.colouring.order,
+                    &self.blocks,
+                    &self.rigid_new,
+                    self.contact.as_mut(),
+                    &mut self.gradient,
+                    true,
+                );
+                stats.force_scale = force_scale(first, &self.load, elastic);
+                goal = tolerance * stats.force_scale;
+                residual = first;
+                converged = first <= goal;
+            }
             for _ in 0..self.params.iterations {
+                if converged {
+                    break;
+                }
                 if let Some(c) = self.contact.as_mut() {
                     c.prepare(&self.x, None);
                     c.index_vertices(n);
@@ -1287,6 +1457,22 @@ impl Stepper for VbdStepper {
                     );
                     stats.chebyshev_restarts += usize::from(restarted);
                 }
+                sweeps += 1;
+                if tolerance > 0.0 {
+                    residual = gradient_norm(
+                        model,
+                        &self.x,
+                        (1.0 / (h * h), &self.target, &self.load),
+                        &self.colouring.order,
+                        &self.blocks,
+                        &self.rigid_new,
+                        self.contact.as_mut(),
+                        &mut self.gradient,
+                        false,
+                    )
+                    .0;
+                    converged = residual <= goal;
+                }
             }
             // The adaptive guess of the next substep reads this substep's starting velocity.
             let prev_v = self.v_prev.get_or_insert_with(|| vec![Vec2::zeros(); n]);
@@ -1328,7 +1514,7 @@ impl Stepper for VbdStepper {
         Ok(StepReport {
             min_det_f: inv.min_det_f,
             inverted: inv.inverted,
-            iterations: self.params.iterations * self.params.substeps,
+            iterations: sweeps,
             residual,
             contacts: self.contacts().len(),
         })

@@ -21,4 +21,5 @@ mod regions;
 mod registry;
 mod rigid;
 mod statics;
+mod tolerance;
 mod vbd;

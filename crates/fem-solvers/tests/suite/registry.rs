@@ -161,6 +161,7 @@ mod serde_keys {
                 "iterations",
                 "ordering",
                 "relaxation",
+                "residual_tolerance",
                 "rest_threshold",
                 "substeps",
                 "xpbd_form",
