@@ -314,13 +314,16 @@ fn frame_budgets(
         };
         let run = budget(&base, &spec, |_| {})?;
         let mut charts = Vec::new();
-        for (energy, chart) in run.budget.charts() {
-            let file = format!("budget-{name}-{}.png", energy.name());
-            let png = chart
+        let png_of = |chart: &fem_render::chart::LineChart| {
+            chart
                 .to_png()
                 .and_then(|i| i.to_png())
-                .map_err(|e| SceneError::Io(e.to_string()))?;
-            write_atomic(&dir.join(&file), &png)?;
+                .map_err(|e| SceneError::Io(e.to_string()))
+        };
+        let phases = run.phase_charts();
+        for (energy, chart) in run.budget.charts() {
+            let file = format!("budget-{name}-{}.png", energy.name());
+            write_atomic(&dir.join(&file), &png_of(&chart)?)?;
             let sentence = run
                 .budget
                 .sentences
@@ -332,10 +335,25 @@ fn frame_budgets(
                 file,
                 title: format!("Frame budget, {name}, {energy}"),
                 caption: format!(
-                    "Position error against the reference (RMS over the mesh and {} frames) against stepping time per frame on one thread, every setting of every framework; the vertical line is the 5 ms budget. {sentence}",
+                    "{} against stepping time per frame on one thread, every stable setting of every framework ({} frames); the vertical line is the 5 ms budget. {sentence}",
+                    chart.y_label,
                     run.budget.frames
                 ),
             });
+            if let Some((_, phase)) = phases.iter().find(|(e, _)| *e == energy)
+                && run
+                    .budget
+                    .reference_of(energy)
+                    .is_some_and(|r| r.windows.impact.is_some())
+            {
+                let file = format!("budget-{name}-{}-phases.png", energy.name());
+                write_atomic(&dir.join(&file), &png_of(phase)?)?;
+                charts.push(Figure {
+                    file,
+                    title: format!("Frame budget windows, {name}, {energy}"),
+                    caption: "The reference's kinetic energy, the soft tissue's peak von Mises stress and the total contact force, each over its largest value; the impact window runs from the first contact with an obstacle until the kinetic energy has fallen for good below the settle threshold, the sustained phase after it.".into(),
+                });
+            }
         }
         out.push(CaseBudget {
             name,

@@ -373,6 +373,18 @@ pub struct Summary {
     /// explicit in time or when no solve converged.
     #[serde(default)]
     pub final_residual: Option<f64>,
+    /// Iterations over the whole run, summed over steps and substeps: Newton iterations, VBD
+    /// sweeps, constraint sweeps (PBD, XPBD), local-global or L-BFGS iterations; 0 for explicit
+    /// FEM. With a residual tolerance (`solver.residual_tolerance`, quasi-Newton's
+    /// `solver.tolerance`) these are the iterations actually used.
+    #[serde(default)]
+    pub solver_iterations: u64,
+    /// The largest of the steps' final residuals over the run, in the solver's own measure
+    /// ([`fem_solvers::StepReport::residual`]: a gradient norm in N for Newton, VBD with a
+    /// tolerance, PD with a tolerance and quasi-Newton; the constraint residual for PBD and
+    /// XPBD); `null` for explicit FEM.
+    #[serde(default)]
+    pub max_step_residual: Option<f64>,
     /// The stress threshold of the regions' `area_above_threshold`, Pa
     /// (`output.stress_threshold`).
     #[serde(default)]
@@ -638,6 +650,8 @@ struct Outcome {
     done: u64,
     newton_iterations: u64,
     final_residual: Option<f64>,
+    solver_iterations: u64,
+    max_step_residual: Option<f64>,
     contact: ContactTally,
 }
 
@@ -745,6 +759,8 @@ fn run_with<E: Energy>(
         done,
         newton_iterations,
         final_residual,
+        solver_iterations,
+        max_step_residual,
         contact,
     } = outcome;
     // A load-stepping run has no simulated time.
@@ -817,6 +833,8 @@ fn run_with<E: Energy>(
         contact_impulse: contact.impulse,
         newton_iterations,
         final_residual,
+        solver_iterations,
+        max_step_residual,
         version: env!("CARGO_PKG_VERSION").to_owned(),
     };
     summary.critical_time_step = model.elastic_critical_time_step();
@@ -910,6 +928,8 @@ fn step_loop<E: Energy>(
     let mut blow_up: Option<String> = None;
     let mut newton_iterations = 0u64;
     let mut final_residual = None;
+    let mut solver_iterations = 0u64;
+    let mut max_step_residual: Option<f64> = None;
     let mut contact = ContactTally::default();
     let mut done = 0u64;
     while !finished(done, state) && blow_up.is_none() {
@@ -942,6 +962,13 @@ fn step_loop<E: Energy>(
                     if caps.implicit {
                         newton_iterations += report.iterations as u64;
                         final_residual = Some(report.residual);
+                    }
+                    if caps.iterations || caps.implicit {
+                        solver_iterations += report.iterations as u64;
+                        max_step_residual = Some(
+                            max_step_residual
+                                .map_or(report.residual, |r: f64| r.max(report.residual)),
+                        );
                     }
                     done += 1;
                 }
@@ -991,6 +1018,8 @@ fn step_loop<E: Energy>(
         done,
         newton_iterations,
         final_residual,
+        solver_iterations,
+        max_step_residual,
         contact,
     })
 }

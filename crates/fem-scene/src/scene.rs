@@ -75,6 +75,9 @@ pub struct Scene {
     /// The body's configuration at t = 0, if not its rest shape.
     #[serde(default)]
     pub initial: Option<InitialSpec>,
+    /// How `fem2d budget` runs this scene unless its flags say otherwise.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub budget: Option<BudgetDefaults>,
 }
 
 /// The `[initial]` table: the body starts scaled about a point, at rest (zero velocity), e.g.
@@ -413,6 +416,23 @@ pub struct ProbeSpec {
     pub name: String,
     /// Rest position, m.
     pub point: [f64; 2],
+}
+
+/// The `[budget]` table: the defaults of `fem2d budget` for this scene (its flags override
+/// them).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BudgetDefaults {
+    /// The energies compared. Default (empty): all five.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub energies: Vec<EnergyKind>,
+    /// Simulated seconds, s. Default: the scene's `steps x dt`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub duration: Option<f64>,
+    /// Steps per frame of the reference (implicit Euler). Default 10 with contact, 100
+    /// without.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reference_steps: Option<u64>,
 }
 
 /// The `[output]` table.
@@ -980,6 +1000,29 @@ impl LoadedScene {
             return Err(self.error("output.frame_every", 0, "must be >= 1"));
         }
         non_negative("output.stress_threshold", s.output.stress_threshold, "Pa")?;
+        if let Some(b) = &s.budget {
+            if let Some(d) = b.duration {
+                positive("budget.duration", d, "s")?;
+            }
+            if let Some(n) = b.reference_steps
+                && !(2..=10_000).contains(&n)
+            {
+                return Err(self.error(
+                    "budget.reference_steps",
+                    n,
+                    "must be an integer from 2 to 10000",
+                ));
+            }
+            for (k, e) in b.energies.iter().enumerate() {
+                if b.energies[..k].contains(e) {
+                    return Err(self.error(
+                        "budget.energies",
+                        format!("\"{}\"", e.name()),
+                        "is listed twice",
+                    ));
+                }
+            }
+        }
         let frames = s.planned_frames();
         if frames > fem_solvers::limits::MAX_RECORDED_FRAMES {
             return Err(self.error(

@@ -1,44 +1,59 @@
 //! The frame-budget answer: which energy x framework combination, at which setting, fits a
-//! real-time frame, and how wrong it is.
+//! real-time frame, and how wrong it is in what the user reads.
 //!
 //! For a scene, a frame rate `fps` (the time step every framework must advance per frame,
 //! `1 / fps`) and a physics budget per frame (milliseconds on one thread), every framework
-//! climbs a ladder of settings from the cheapest up ([`Framework::ladder`]: substeps for
-//! explicit; substeps x iterations for PBD and XPBD, in XPBD's two schedules; sweeps for VBD;
-//! iterations for Projective Dynamics and quasi-Newton; Newton's tolerance for implicit Euler),
-//! each run over the scene's whole duration on one thread. Every setting's run is measured
-//! (stepping time per frame) and compared frame by frame with a converged **reference** of the
-//! same energy: implicit Euler at a hundredth of the frame step with Newton's tolerance 1e-10
-//! (its own first-order error then a hundredth of implicit Euler's at the frame step), or, for
-//! a scene with contact, at a tenth of the frame step with barrier contact (the penalty and
-//! projection solvers' errors then include the barrier's cushion of up to
-//! `barrier_distance`, 1 mm). Explicit FEM with penalty contact is no reference for contact:
-//! its penetration is set by the penalty stiffness, not the step (on case D with rigid bones,
-//! 6.5 mm at half the critical step, and its debris slides 4.6 cm further in 0.5 s than under
-//! barrier friction: 1.1e-2 m RMS between the two). The errors are over the whole mesh
-//! ([`Errors`]): position RMS and max over all vertices and frames, the relative error of the
-//! peak von Mises stress, the largest absolute area error (the per-triangle area differences,
-//! summed without cancelling, over the body's area) and the most inverted triangles in a
-//! frame.
+//! climbs ladders of settings from the cheapest up ([`Framework::ladder`]): fixed counts
+//! (substeps for explicit; substeps x iterations for PBD and XPBD, in XPBD's two schedules;
+//! sweeps for VBD; iterations for Projective Dynamics and quasi-Newton; Newton's tolerance for
+//! implicit Euler) and, for the iterative solvers, residual tolerances (VBD, XPBD, PD and
+//! quasi-Newton stop when their residual falls below the tolerance, at most 200 iterations).
+//! Each rung runs the scene's whole duration on one thread; its stepping time per frame, the
+//! iterations it actually used and the largest residual its steps ended with are reported.
 //!
-//! A setting is **stable** when its run completes without a blow-up or a solver failure; a
-//! framework that cannot run the scene at all (Projective Dynamics with an energy other than
-//! co-rotational, PD and quasi-Newton with contact) says why. For each energy x framework the
-//! table gives the cheapest stable setting and the most accurate stable setting within the
-//! budget; frameworks are ranked per energy by the latter's position RMS, and one sentence per
-//! energy names the best.
+//! **Reference.** Each energy's motion computed to convergence in time: implicit Euler at a
+//! hundredth of the frame step with Newton's tolerance 1e-10, or, for a scene with contact, at
+//! a tenth of the frame step with barrier contact (the penalty and projection solvers' errors
+//! then include the barrier's cushion of up to `barrier_distance`, 1 mm). Rigid regions are
+//! rigid bodies in it as in every framework. Explicit FEM is no reference for contact: its
+//! penalty penetration is set by its stiffness, not by the step (6.5 mm on case D at half its
+//! critical step), and at half its critical step it costs a thousand steps a frame. The
+//! reference's own error is estimated by running it again at twice its step: for a first-order
+//! method the difference between the two is the finer one's error, to first order
+//! ([`Budget::references`]).
+//!
+//! **Errors** ([`measure::Errors`]) are taken per window ([`measure::Windows`], found on the
+//! reference): the whole run; the impact, from the first contact (with an obstacle, or the
+//! ground in a scene without one) until the reference's kinetic energy has fallen for good
+//! below [`BudgetSpec::settle`] (1 %) of its peak; and the sustained phase after it. In each: position RMS and max; for the soft tissue (the
+//! deformable regions, together and each) the relative L2 error of the von Mises field and the
+//! relative error of its peak; for each rigid region the relative L2 error of the tissue's
+//! force and torque on its bodies; for each contact target (the ground, each obstacle) the
+//! relative error of its peak pressure and of its impulse; the absolute area error and the
+//! most inverted triangles.
+//!
+//! **Ranking** by a declared quantity ([`RankBy`]): by default the soft tissue's stress in the
+//! sustained phase when the scene has material regions or contact, position otherwise. Each
+//! row's "best" is its stable setting within the budget with the smallest such error; the
+//! table also gives its cheapest stable setting. One sentence per energy names the best and
+//! the quantity, and with contact says which settings (if any) get both the sustained soft
+//! tissue stress and peak contact pressure within [`BudgetSpec::criterion`] (5 %), or which
+//! comes closest.
 
-use std::fmt::Write as _;
+pub mod measure;
+mod table;
 
 use fem_core::energy::EnergyKind;
 use fem_scene::SceneError;
-use fem_scene::run::{Frame, FrameSink, RunEnv, RunResult, run};
+use fem_scene::run::{RunEnv, RunResult, run};
 use fem_scene::scene::LoadedScene;
 use fem_solvers::SolverKind;
 use serde::{Deserialize, Serialize};
 
 use crate::files::FileSource;
 use crate::run::SystemClock;
+use measure::Recorder;
+pub use measure::{Errors, Layout, Phase, Trajectory, WindowErrors, Windows, errors};
 
 /// The frameworks a budget compares. Serde and command-line names: [`Framework::name`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
@@ -61,6 +76,9 @@ pub enum Framework {
     /// Implicit Euler by Newton, tolerance.
     Implicit,
 }
+
+/// Most iterations of a tolerance rung (the top of the fixed ladders).
+pub const TOLERANCE_MAX_ITERATIONS: u64 = 200;
 
 impl Framework {
     /// Every framework, in table order.
@@ -110,56 +128,112 @@ impl Framework {
             })
     }
 
-    /// Its settings from the cheapest up.
+    /// Its settings from the cheapest up: the fixed-count ladder (group 0), then for the
+    /// iterative solvers the residual-tolerance ladder (group 1), loosest first.
     pub fn ladder(self) -> Vec<Setting> {
         let int = |n: u64| toml::Value::Integer(n as i64);
         let sweeps = [1u64, 2, 3, 5, 10, 20, 50, 100, 200];
+        let fixed = |label: String, values: Vec<(String, toml::Value)>| Setting {
+            label,
+            values,
+            steps_per_frame: 1,
+            tolerance: None,
+            group: 0,
+        };
+        // Quasi-Newton's own `tolerance`; VBD, PD and XPBD's `residual_tolerance` (the flat
+        // `[solver]` table's `tolerance` is implicit Euler's Newton tolerance).
+        let key = if self == Framework::QuasiNewton {
+            "tolerance"
+        } else {
+            "residual_tolerance"
+        };
+        let tolerances = |extra: Vec<(String, toml::Value)>, tols: &[f64]| -> Vec<Setting> {
+            tols.iter()
+                .map(|&t| {
+                    let mut values = extra.clone();
+                    values.push(("iterations".into(), int(TOLERANCE_MAX_ITERATIONS)));
+                    values.push((key.into(), toml::Value::Float(t)));
+                    Setting {
+                        label: format!("tolerance {t:e}"),
+                        values,
+                        steps_per_frame: 1,
+                        tolerance: Some(t),
+                        group: 1,
+                    }
+                })
+                .collect()
+        };
         match self {
             Framework::Explicit => [
                 1u64, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64, 96, 128, 192, 256,
             ]
             .iter()
             .map(|&n| Setting {
-                label: format!("{n} substeps"),
-                values: Vec::new(),
                 steps_per_frame: n,
+                ..fixed(format!("{n} substeps"), Vec::new())
             })
             .collect(),
-            Framework::Pbd | Framework::Xpbd => sweeps
+            Framework::Pbd => sweeps
                 .iter()
-                .map(|&n| Setting {
-                    label: format!("{n} iterations"),
-                    values: vec![("substeps".into(), int(1)), ("iterations".into(), int(n))],
-                    steps_per_frame: 1,
+                .map(|&n| {
+                    fixed(
+                        format!("{n} iterations"),
+                        vec![("substeps".into(), int(1)), ("iterations".into(), int(n))],
+                    )
                 })
                 .collect(),
+            Framework::Xpbd => {
+                let mut l: Vec<Setting> = sweeps
+                    .iter()
+                    .map(|&n| {
+                        fixed(
+                            format!("{n} iterations"),
+                            vec![("substeps".into(), int(1)), ("iterations".into(), int(n))],
+                        )
+                    })
+                    .collect();
+                // XPBD's residual is relative to the substep's first iteration.
+                l.extend(tolerances(
+                    vec![("substeps".into(), int(1))],
+                    &[1e-1, 1e-2, 1e-3],
+                ));
+                l
+            }
             // The named setting: n sweeps spent as n substeps of one.
             Framework::XpbdSmallSteps => sweeps
                 .iter()
-                .map(|&n| Setting {
-                    label: format!("{n} substeps x 1"),
-                    values: vec![
-                        ("substeps".into(), int(1)),
-                        ("iterations".into(), int(n)),
-                        ("xpbd_schedule".into(), "small-steps".into()),
-                    ],
-                    steps_per_frame: 1,
+                .map(|&n| {
+                    fixed(
+                        format!("{n} substeps x 1"),
+                        vec![
+                            ("substeps".into(), int(1)),
+                            ("iterations".into(), int(n)),
+                            ("xpbd_schedule".into(), "small-steps".into()),
+                        ],
+                    )
                 })
                 .collect(),
-            Framework::Vbd | Framework::Pd | Framework::QuasiNewton => sweeps
-                .iter()
-                .map(|&n| Setting {
-                    label: format!("{n} iterations"),
-                    values: vec![("iterations".into(), int(n))],
-                    steps_per_frame: 1,
-                })
-                .collect(),
+            Framework::Vbd | Framework::Pd | Framework::QuasiNewton => {
+                let mut l: Vec<Setting> = sweeps
+                    .iter()
+                    .map(|&n| {
+                        fixed(
+                            format!("{n} iterations"),
+                            vec![("iterations".into(), int(n))],
+                        )
+                    })
+                    .collect();
+                l.extend(tolerances(Vec::new(), &[1e-2, 1e-3, 1e-4, 1e-6]));
+                l
+            }
             Framework::Implicit => [1e-2, 1e-4, 1e-6, 1e-8]
                 .iter()
                 .map(|&t| Setting {
-                    label: format!("tolerance {t:e}"),
-                    values: vec![("tolerance".into(), toml::Value::Float(t))],
-                    steps_per_frame: 1,
+                    tolerance: Some(t),
+                    ..fixed(
+                        format!("tolerance {t:e}"),
+                        vec![("tolerance".into(), toml::Value::Float(t))],
+                    )
                 })
                 .collect(),
         }
@@ -169,12 +243,130 @@ impl Framework {
 /// One rung of a ladder: solver parameters and how many steps make a frame.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Setting {
-    /// Short label (`10 iterations`).
+    /// Short label (`10 iterations`, `tolerance 1e-3`).
     pub label: String,
     /// `[solver]` keys and values set on the scene.
     pub values: Vec<(String, toml::Value)>,
     /// Steps per frame (explicit's substeps; 1 otherwise: the solver substeps itself).
     pub steps_per_frame: u64,
+    /// The residual tolerance of a tolerance rung (and implicit Euler's Newton tolerance).
+    pub tolerance: Option<f64>,
+    /// The ladder it belongs to: 0 fixed counts, 1 residual tolerances. A ladder stops once a
+    /// rung costs twice the budget; the next ladder starts from its cheapest rung again.
+    pub group: u8,
+}
+
+/// The quantity frameworks are ranked by (and each row's best setting chosen by).
+/// Command-line names: [`RankBy::name`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum RankBy {
+    /// Position RMS over the whole run, m.
+    Position,
+    /// The soft tissue's von Mises field in the sustained phase, relative L2 error.
+    Stress,
+    /// The soft tissue's von Mises field in the impact window, relative L2 error.
+    StressImpact,
+    /// The largest relative error of a contact target's peak pressure, sustained phase.
+    Pressure,
+    /// The same in the impact window.
+    PressureImpact,
+}
+
+impl RankBy {
+    /// Every quantity.
+    pub const ALL: [RankBy; 5] = [
+        RankBy::Position,
+        RankBy::Stress,
+        RankBy::StressImpact,
+        RankBy::Pressure,
+        RankBy::PressureImpact,
+    ];
+
+    /// The name on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            RankBy::Position => "position",
+            RankBy::Stress => "stress",
+            RankBy::StressImpact => "stress-impact",
+            RankBy::Pressure => "pressure",
+            RankBy::PressureImpact => "pressure-impact",
+        }
+    }
+
+    /// Parse a name.
+    pub fn parse(name: &str) -> Result<RankBy, String> {
+        RankBy::ALL
+            .into_iter()
+            .find(|r| r.name() == name)
+            .ok_or_else(|| {
+                let names: Vec<&str> = RankBy::ALL.iter().map(|r| r.name()).collect();
+                format!(
+                    "unknown quantity `{name}` (expected one of: {})",
+                    names.join(", ")
+                )
+            })
+    }
+
+    /// The default for `scene`: the soft tissue's sustained stress when the scene has material
+    /// regions or contact (a medical scene), position otherwise.
+    pub fn default_for(scene: &LoadedScene) -> RankBy {
+        let s = &scene.scene;
+        if !s.regions.is_empty() || s.ground.is_some() || !s.obstacles.is_empty() {
+            RankBy::Stress
+        } else {
+            RankBy::Position
+        }
+    }
+
+    /// The window it is measured over (`Whole` for position).
+    pub fn phase(self) -> Phase {
+        match self {
+            RankBy::Position => Phase::Whole,
+            RankBy::Stress | RankBy::Pressure => Phase::Sustained,
+            RankBy::StressImpact | RankBy::PressureImpact => Phase::Impact,
+        }
+    }
+
+    /// The window it is measured over given `windows` (the whole run when the phase does not
+    /// exist: no contact, or a reference that never settles).
+    pub fn effective_phase(self, windows: &Windows) -> Phase {
+        let p = self.phase();
+        if windows.get(p).is_some() {
+            p
+        } else {
+            Phase::Whole
+        }
+    }
+
+    /// Its value in `errors` (`None` when undefined: no stress or no contact in the
+    /// reference's window).
+    pub fn value(self, errors: &Errors, windows: &Windows) -> Option<f64> {
+        let w = errors.get(self.effective_phase(windows))?;
+        match self {
+            RankBy::Position => Some(w.position_rms),
+            RankBy::Stress | RankBy::StressImpact => w.stress_l2,
+            RankBy::Pressure | RankBy::PressureImpact => w.pressure_peak,
+        }
+    }
+
+    /// What it is, in words, for sentences and captions.
+    pub fn describe(self, windows: &Windows) -> String {
+        let phase = match self.effective_phase(windows) {
+            Phase::Whole => "over the whole run",
+            Phase::Impact => "in the impact window",
+            Phase::Sustained => "in the sustained phase",
+        };
+        match self {
+            RankBy::Position => format!("position RMS {phase} (m)"),
+            RankBy::Stress | RankBy::StressImpact => {
+                format!("the soft tissue's von Mises stress {phase} (relative L2 error)")
+            }
+            RankBy::Pressure | RankBy::PressureImpact => {
+                format!("the peak contact pressure {phase} (relative error)")
+            }
+        }
+    }
 }
 
 /// What to compare and against what.
@@ -184,12 +376,26 @@ pub struct BudgetSpec {
     pub fps: f64,
     /// Physics budget per frame on one thread, ms. Default 5.
     pub budget_ms: f64,
-    /// Simulated seconds (default: the scene's `steps x dt`).
+    /// Simulated seconds (`None`: the scene's `[budget] duration`, else its `steps x dt`).
     pub duration: Option<f64>,
-    /// Energies (default all five).
+    /// Energies (empty: the scene's `[budget] energies`, else all five).
     pub energies: Vec<EnergyKind>,
     /// Frameworks (default all).
     pub frameworks: Vec<Framework>,
+    /// The ranking quantity (`None`: [`RankBy::default_for`] the scene).
+    pub rank_by: Option<RankBy>,
+    /// The impact ends when the reference's kinetic energy has fallen for good below this
+    /// fraction of its peak, dimensionless, in (0, 1). Default 0.01.
+    pub settle: f64,
+    /// The relative error a medical answer must stay within, for the sustained soft tissue
+    /// stress (L2) and the peak contact pressure, dimensionless. Default 0.05.
+    pub criterion: f64,
+    /// A rung is stopped once its stepping time exceeds this many times the budget over the
+    /// whole run (it cannot be chosen, and its dearer neighbours are skipped). Default 8.
+    pub cost_cap: f64,
+    /// Steps per frame of the reference (`None`: the scene's `[budget] reference_steps`, else
+    /// 10 with contact, 100 without; at least 2, its own error is estimated at half as many).
+    pub reference_steps: Option<u64>,
 }
 
 impl Default for BudgetSpec {
@@ -198,8 +404,13 @@ impl Default for BudgetSpec {
             fps: 90.0,
             budget_ms: 5.0,
             duration: None,
-            energies: EnergyKind::ALL.to_vec(),
+            energies: Vec::new(),
             frameworks: Framework::ALL.to_vec(),
+            rank_by: None,
+            settle: 0.01,
+            criterion: 0.05,
+            cost_cap: 8.0,
+            reference_steps: None,
         }
     }
 }
@@ -215,21 +426,6 @@ impl BudgetSpec {
     }
 }
 
-/// Errors of a run against the reference, over the whole mesh and every frame.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
-pub struct Errors {
-    /// RMS over all vertices and frames of the distance to the reference, m.
-    pub position_rms: f64,
-    /// Largest distance to the reference, m.
-    pub position_max: f64,
-    /// `|peak von Mises - the reference's| / the reference's` (peaks over all frames).
-    pub peak_von_mises: f64,
-    /// Largest over frames of `sum_e |a_e - a_e,ref| / A`: the absolute area error.
-    pub area: f64,
-    /// Most triangles with `det F <= 0` in one frame.
-    pub inverted: usize,
-}
-
 /// One setting's run.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Trial {
@@ -239,14 +435,26 @@ pub struct Trial {
     pub framework: Framework,
     /// The setting's label.
     pub setting: String,
+    /// The residual tolerance of a tolerance rung (or implicit Euler's Newton tolerance).
+    pub tolerance: Option<f64>,
     /// Completed without a blow-up or a solver failure.
     pub stable: bool,
-    /// Why not (a blow-up, a failed step).
+    /// Why not (a blow-up, a failed step, stopped over the cost cap).
     pub failure: Option<String>,
+    /// Stopped because it cost more than [`BudgetSpec::cost_cap`] times the budget.
+    pub over_cap: bool,
     /// Stepping time per frame on one thread, ms.
     pub ms_per_frame: f64,
+    /// Solver iterations per frame actually used (sweeps, constraint, local-global, L-BFGS or
+    /// Newton iterations, summed over substeps; 0 for explicit).
+    pub iterations_per_frame: f64,
+    /// The largest final residual of a step over the run, in the solver's measure
+    /// (`summary.json`'s `max_step_residual`); `None` for explicit.
+    pub residual: Option<f64>,
     /// Errors against the reference (meaningful when stable).
     pub errors: Errors,
+    /// The ranking quantity's value (`None` when undefined or unstable).
+    pub rank_value: Option<f64>,
 }
 
 /// One energy x framework row of the table.
@@ -260,8 +468,24 @@ pub struct Row {
     pub cannot_run: Option<String>,
     /// The cheapest stable setting.
     pub cheapest: Option<Trial>,
-    /// The most accurate stable setting within the budget (smallest position RMS).
+    /// The most accurate stable setting within the budget (smallest ranking quantity; ties
+    /// and undefined values by position RMS).
     pub best: Option<Trial>,
+}
+
+/// An energy's reference: how it was run, its windows and its own estimated error.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Reference {
+    /// The energy.
+    pub energy: EnergyKind,
+    /// How it was run.
+    pub label: String,
+    /// The windows found on it.
+    pub windows: Windows,
+    /// Times of the windows' first frames, s: `[impact, sustained]` (`None` when absent).
+    pub window_times: [Option<f64>; 2],
+    /// The reference at twice its step against it: its own error to first order.
+    pub error: Errors,
 }
 
 /// The whole answer.
@@ -277,6 +501,14 @@ pub struct Budget {
     pub frames: u64,
     /// How the reference was run (`implicit Euler, dt = ..., tolerance 1e-10`).
     pub reference: String,
+    /// The ranking quantity.
+    pub rank_by: RankBy,
+    /// [`BudgetSpec::criterion`].
+    pub criterion: f64,
+    /// [`BudgetSpec::cost_cap`].
+    pub cost_cap: f64,
+    /// Per energy: the reference's windows and its estimated error.
+    pub references: Vec<Reference>,
     /// Every setting tried, ladder order.
     pub trials: Vec<Trial>,
     /// Per energy, the frameworks ranked (best within the budget first; those without one
@@ -286,38 +518,19 @@ pub struct Budget {
     pub sentences: Vec<String>,
 }
 
-/// Positions at every frame.
-#[derive(Default)]
-struct Recorder {
-    frames: Vec<Vec<[f64; 2]>>,
-    peak_von_mises: f64,
-}
+/// Why a recorded run ended early, when the budget stopped it.
+struct OverCap;
 
-impl FrameSink for Recorder {
-    fn frame(&mut self, f: &Frame<'_>) -> Result<(), SceneError> {
-        self.frames
-            .push(f.positions.iter().map(|p| [p.x, p.y]).collect());
-        for &v in f.von_mises {
-            if v.is_finite() {
-                self.peak_von_mises = self.peak_von_mises.max(v);
-            }
-        }
-        Ok(())
-    }
-}
-
-/// A run's trajectory: positions at each frame and the peak von Mises stress over them.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct Trajectory {
-    /// Positions per frame (the first at t = 0), m.
-    pub frames: Vec<Vec<[f64; 2]>>,
-    /// Peak per-element von Mises stress over the recorded frames, Pa.
-    pub peak_von_mises: f64,
-}
+/// What [`record`] returns: the run's result, its trajectory and the mesh's layout.
+type Recorded = (RunResult, Trajectory, Layout);
 
 /// Run `scene` on one thread recording every `every`-th step; the result, its trajectory and
-/// its stepping time.
-fn record(scene: &LoadedScene, every: u64) -> Result<(RunResult, Trajectory), SceneError> {
+/// the layout of its mesh, or `Ok(Err(OverCap))` once the run passed `cap` seconds.
+fn record(
+    scene: &LoadedScene,
+    every: u64,
+    cap: Option<f64>,
+) -> Result<Result<Recorded, OverCap>, SceneError> {
     let mut scene = scene.clone();
     scene.scene.output.frame_every = every;
     scene.scene.output.frames = false;
@@ -328,7 +541,11 @@ fn record(scene: &LoadedScene, every: u64) -> Result<(RunResult, Trajectory), Sc
     pool.install(|| {
         let clock = SystemClock::new();
         let files = FileSource::for_scene(&scene);
-        let mut rec = Recorder::default();
+        let mut rec = Recorder::new(
+            scene.scene.ground.is_some(),
+            scene.scene.obstacles.len(),
+            cap,
+        );
         let result = {
             let mut env = RunEnv {
                 clock: &clock,
@@ -338,58 +555,13 @@ fn record(scene: &LoadedScene, every: u64) -> Result<(RunResult, Trajectory), Sc
                 snapshot_every: None,
                 drag: None,
             };
-            run(&scene, &mut env)?
+            run(&scene, &mut env)
         };
-        Ok((
-            result,
-            Trajectory {
-                frames: rec.frames,
-                peak_von_mises: rec.peak_von_mises,
-            },
-        ))
+        if rec.over_cap {
+            return Ok(Err(OverCap));
+        }
+        Ok(Ok((result?, rec.trajectory, rec.layout)))
     })
-}
-
-/// The errors of `run` against `reference` on the mesh `rest`/`triangles` (see [`Errors`]);
-/// frames beyond the shorter of the two are not compared.
-pub fn errors(
-    rest: &[[f64; 2]],
-    triangles: &[[u32; 3]],
-    run: &Trajectory,
-    reference: &Trajectory,
-) -> Errors {
-    let area = |x: &[[f64; 2]], t: &[u32; 3]| {
-        let (a, b, c) = (x[t[0] as usize], x[t[1] as usize], x[t[2] as usize]);
-        0.5 * ((b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]))
-    };
-    let total: f64 = triangles.iter().map(|t| area(rest, t)).sum();
-    let mut e = Errors::default();
-    let (mut sum, mut count) = (0.0, 0usize);
-    for (x, r) in run.frames.iter().zip(&reference.frames) {
-        for (p, q) in x.iter().zip(r) {
-            let d2 = (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2);
-            sum += d2;
-            count += 1;
-            e.position_max = e.position_max.max(d2.sqrt());
-        }
-        let mut frame_area = 0.0;
-        let mut inverted = 0;
-        for t in triangles {
-            let a = area(x, t);
-            frame_area += (a - area(r, t)).abs();
-            inverted += usize::from(a <= 0.0);
-        }
-        e.area = e.area.max(frame_area / total);
-        e.inverted = e.inverted.max(inverted);
-    }
-    e.position_rms = if count > 0 {
-        (sum / count as f64).sqrt()
-    } else {
-        f64::NAN
-    };
-    e.peak_von_mises =
-        (run.peak_von_mises - reference.peak_von_mises).abs() / reference.peak_von_mises;
-    e
 }
 
 /// `scene` with `energy`, `solver` and `values`, `steps` steps of `dt`; validated (the typed
@@ -431,13 +603,31 @@ fn cannot_run(scene: &LoadedScene, energy: EnergyKind, framework: Framework) -> 
 pub struct BudgetRun {
     /// The answer.
     pub budget: Budget,
-    /// Rest positions of the mesh, m.
-    pub rest: Vec<[f64; 2]>,
-    /// Its triangles.
-    pub triangles: Vec<[u32; 3]>,
-    /// The trajectories of each energy's reference (`ENERGY-reference`) and of each row's best
-    /// setting within the budget (`ENERGY-FRAMEWORK`).
+    /// The mesh, its regions and the contact targets.
+    pub layout: Layout,
+    /// The trajectories of each energy's reference (`ENERGY-reference`), of the reference at
+    /// twice its step (`ENERGY-reference-coarse`) and of each row's best setting within the
+    /// budget (`ENERGY-FRAMEWORK`).
     pub trajectories: Vec<(String, Trajectory)>,
+}
+
+/// `layout` with `scene`'s contact targets (the ground, then each obstacle) and the frame step.
+fn with_targets(scene: &LoadedScene, mut layout: Layout, frame_dt: f64) -> Layout {
+    let s = &scene.scene;
+    layout.contact_targets.clear();
+    if s.ground.is_some() {
+        layout.contact_targets.push("ground".to_owned());
+    }
+    for (k, o) in s.obstacles.iter().enumerate() {
+        layout.contact_targets.push(if o.name.is_empty() {
+            format!("obstacle {k}")
+        } else {
+            o.name.clone()
+        });
+    }
+    layout.has_ground = s.ground.is_some();
+    layout.frame_dt = frame_dt;
+    layout
 }
 
 /// Run the budget comparison of `base` (see the module docs); `progress` is told what runs.
@@ -459,8 +649,44 @@ pub fn budget(
             spec.budget_ms
         )));
     }
+    if !(spec.settle > 0.0 && spec.settle < 1.0) {
+        return Err(SceneError::Usage(format!(
+            "--settle {}: must be in the open interval (0, 1)",
+            spec.settle
+        )));
+    }
+    if !(spec.criterion.is_finite() && spec.criterion > 0.0) {
+        return Err(SceneError::Usage(format!(
+            "--criterion {}: must be a finite number > 0",
+            spec.criterion
+        )));
+    }
+    if !(spec.cost_cap.is_finite() && spec.cost_cap >= 1.0) {
+        return Err(SceneError::Usage(format!(
+            "cost cap {}: must be a finite number >= 1",
+            spec.cost_cap
+        )));
+    }
+    let defaults = s.budget.clone().unwrap_or_default();
+    let energies: Vec<EnergyKind> = if !spec.energies.is_empty() {
+        spec.energies.clone()
+    } else if !defaults.energies.is_empty() {
+        defaults.energies.clone()
+    } else {
+        EnergyKind::ALL.to_vec()
+    };
+    let reference_steps = spec.reference_steps.or(defaults.reference_steps);
+    if reference_steps.is_some_and(|n| !(2..=10_000).contains(&n)) {
+        return Err(SceneError::Usage(format!(
+            "--reference-steps {}: must be an integer from 2 to 10000",
+            reference_steps.unwrap_or_default()
+        )));
+    }
     let frame_dt = 1.0 / spec.fps;
-    let duration = spec.duration.unwrap_or(s.solver.dt * s.solver.steps as f64);
+    let duration = spec
+        .duration
+        .or(defaults.duration)
+        .unwrap_or(s.solver.dt * s.solver.steps as f64);
     if !(duration.is_finite() && duration > 0.0) {
         return Err(SceneError::Usage(format!(
             "--duration {duration}: must be a finite number > 0"
@@ -473,39 +699,74 @@ pub fn budget(
             spec.fps
         )));
     }
+    let rank_by = spec.rank_by.unwrap_or_else(|| RankBy::default_for(base));
     let contact = s.ground.is_some() || !s.obstacles.is_empty();
-    let mut mesh = (Vec::new(), Vec::new());
+    let cap = spec.cost_cap * spec.budget_ms * 1e-3 * frames as f64;
+    let mut lay = Layout::default();
     let mut trials = Vec::new();
     let mut rows = Vec::new();
     let mut kept = Vec::new();
+    let mut references = Vec::new();
     let mut reference_label = String::new();
-    for &energy in &spec.energies {
-        // The reference of this energy.
-        // Implicit Euler converged to round-off, at a hundredth of the frame step; with
-        // contact at a tenth (its barrier contact is the framework's converged contact: the
-        // penalty of explicit FEM penetrates by a depth its stiffness sets, whatever the step).
-        let per_frame: u64 = if contact { 10 } else { 100 };
-        let (solver, values): (SolverKind, Vec<(String, toml::Value)>) = (
-            SolverKind::Implicit,
-            vec![
-                ("tolerance".into(), toml::Value::Float(1e-10)),
-                ("max_iterations".into(), toml::Value::Integer(200)),
-            ],
+    for &energy in &energies {
+        // The reference of this energy: implicit Euler converged to round-off, at a hundredth
+        // of the frame step; with contact at a tenth (its barrier contact is the framework's
+        // converged contact: the penalty of explicit FEM penetrates by a depth its stiffness
+        // sets, whatever the step). Then again at twice that step, for its own error.
+        let per_frame: u64 = reference_steps.unwrap_or(if contact { 10 } else { 100 });
+        let values = vec![
+            ("tolerance".to_owned(), toml::Value::Float(1e-10)),
+            ("max_iterations".to_owned(), toml::Value::Integer(200)),
+        ];
+        let mut run_reference = |per: u64| -> Result<Recorded, SceneError> {
+            let dt = frame_dt / per as f64;
+            let label = format!(
+                "{}, dt = {dt:e} s ({per} steps per frame), Newton tolerance 1e-10",
+                SolverKind::Implicit
+            );
+            progress(&format!("{energy}: reference ({label})"));
+            let scene = variant(
+                base,
+                energy,
+                SolverKind::Implicit,
+                &values,
+                dt,
+                frames * per,
+            )?;
+            let Ok((result, trajectory, layout)) = record(&scene, per, None)? else {
+                unreachable!("a run without a cap is never stopped");
+            };
+            if result.summary.blew_up {
+                return Err(SceneError::Scene(format!(
+                    "{}: the reference run ({label}, {energy}) did not complete: {}",
+                    base.origin,
+                    result.summary.blow_up_message.clone().unwrap_or_default()
+                )));
+            }
+            Ok((result, trajectory, layout))
+        };
+        let (_, reference, fine_layout) = run_reference(per_frame)?;
+        let (_, coarse, _) = run_reference(per_frame / 2)?;
+        reference_label = format!(
+            "implicit Euler at dt = {:e} s ({per_frame} steps per frame), Newton tolerance 1e-10",
+            frame_dt / per_frame as f64
         );
-        let dt = frame_dt / per_frame as f64;
-        reference_label = format!("{solver}, dt = {dt:e} s ({per_frame} steps per frame)");
-        progress(&format!("{energy}: reference ({reference_label})"));
-        let scene = variant(base, energy, solver, &values, dt, frames * per_frame)?;
-        let (result, reference) = record(&scene, per_frame)?;
-        if result.summary.blew_up {
-            return Err(SceneError::Scene(format!(
-                "{}: the reference run ({reference_label}, {energy}) did not complete: {}",
-                base.origin,
-                result.summary.blow_up_message.clone().unwrap_or_default()
-            )));
-        }
-        let (rest, triangles) = (result.rest.clone(), result.triangles.clone());
-        mesh = (rest.clone(), triangles.clone());
+        lay = with_targets(base, fine_layout, frame_dt);
+        let windows = Windows::find(&lay, &reference, spec.settle);
+        let time_of = |span: Option<measure::Span>| span.map(|s| s[0] as f64 * frame_dt);
+        references.push(Reference {
+            energy,
+            label: reference_label.clone(),
+            windows,
+            window_times: [time_of(windows.impact), time_of(windows.sustained)],
+            error: errors(&lay, &windows, &coarse, &reference),
+        });
+        let key = |t: &Trial| {
+            (
+                t.rank_value.unwrap_or(f64::INFINITY),
+                t.errors.whole.position_rms,
+            )
+        };
         for &framework in &spec.frameworks {
             if let Some(why) = cannot_run(base, energy, framework) {
                 rows.push(Row {
@@ -520,7 +781,11 @@ pub fn budget(
             progress(&format!("{energy}: {}", framework.name()));
             let mut cheapest: Option<Trial> = None;
             let mut best: Option<(Trial, Trajectory)> = None;
+            let mut skip_group: Option<u8> = None;
             for setting in framework.ladder() {
+                if skip_group == Some(setting.group) {
+                    continue;
+                }
                 let per = setting.steps_per_frame;
                 let scene = variant(
                     base,
@@ -530,37 +795,62 @@ pub fn budget(
                     frame_dt / per as f64,
                     frames * per,
                 )?;
-                let (result, trajectory) = record(&scene, per)?;
-                let stable = !result.summary.blew_up;
-                let ms = 1e3 * result.summary.step_seconds / frames as f64;
-                let trial = Trial {
+                let mut trial = Trial {
                     energy,
                     framework,
                     setting: setting.label.clone(),
-                    stable,
-                    failure: result.summary.blow_up_message.clone(),
-                    ms_per_frame: ms,
-                    errors: if stable {
-                        errors(&rest, &triangles, &trajectory, &reference)
-                    } else {
-                        Errors::default()
-                    },
+                    tolerance: setting.tolerance,
+                    stable: false,
+                    failure: None,
+                    over_cap: false,
+                    ms_per_frame: f64::NAN,
+                    iterations_per_frame: f64::NAN,
+                    residual: None,
+                    errors: Errors::default(),
+                    rank_value: None,
                 };
+                let trajectory = match record(&scene, per, Some(cap))? {
+                    Err(OverCap) => {
+                        trial.over_cap = true;
+                        trial.failure = Some(format!(
+                            "stopped: its stepping passed {} times the budget over the run",
+                            fmt_num(spec.cost_cap)
+                        ));
+                        trials.push(trial);
+                        skip_group = Some(setting.group);
+                        continue;
+                    }
+                    Ok((result, trajectory, _)) => {
+                        let s = &result.summary;
+                        trial.stable = !s.blew_up;
+                        trial.failure = s.blow_up_message.clone();
+                        trial.ms_per_frame = 1e3 * s.step_seconds / frames as f64;
+                        trial.iterations_per_frame = s.solver_iterations as f64 / frames as f64;
+                        trial.residual = s.max_step_residual;
+                        trajectory
+                    }
+                };
+                if trial.stable {
+                    trial.errors = errors(&lay, &windows, &trajectory, &reference);
+                    trial.rank_value = rank_by.value(&trial.errors, &windows);
+                }
                 trials.push(trial.clone());
-                if stable && cheapest.is_none() {
+                let ms = trial.ms_per_frame;
+                if trial.stable && cheapest.is_none() {
                     cheapest = Some(trial.clone());
                 }
-                if stable
+                if trial.stable
                     && ms <= spec.budget_ms
-                    && best
-                        .as_ref()
-                        .is_none_or(|(b, _)| trial.errors.position_rms < b.errors.position_rms)
+                    && best.as_ref().is_none_or(|(b, _)| {
+                        key(&trial).partial_cmp(&key(b)).is_some_and(|o| o.is_lt())
+                    })
                 {
                     best = Some((trial.clone(), trajectory));
                 }
-                // Past the budget (after a stable rung), dearer settings cannot be chosen.
+                // Past the budget (after a stable rung), dearer settings of this ladder
+                // cannot be chosen.
                 if ms > 2.0 * spec.budget_ms && cheapest.is_some() {
-                    break;
+                    skip_group = Some(setting.group);
                 }
             }
             let best = best.map(|(t, traj)| {
@@ -576,83 +866,56 @@ pub fn budget(
             });
         }
         kept.push((format!("{}-reference", energy.name()), reference));
+        kept.push((format!("{}-reference-coarse", energy.name()), coarse));
     }
-    // Rank within each energy: best position RMS within the budget first.
+    // Rank within each energy: the best setting's ranking quantity first.
     rows.sort_by(|a, b| {
         let key = |r: &Row| {
-            r.best
-                .as_ref()
-                .map_or(f64::INFINITY, |t| t.errors.position_rms)
+            r.best.as_ref().map_or((f64::INFINITY, f64::INFINITY), |t| {
+                (
+                    t.rank_value.unwrap_or(f64::INFINITY),
+                    t.errors.whole.position_rms,
+                )
+            })
         };
-        let ea = spec.energies.iter().position(|e| *e == a.energy);
-        let eb = spec.energies.iter().position(|e| *e == b.energy);
+        let ea = energies.iter().position(|e| *e == a.energy);
+        let eb = energies.iter().position(|e| *e == b.energy);
+        let (ka, kb) = (key(a), key(b));
         ea.cmp(&eb)
-            .then(key(a).total_cmp(&key(b)))
+            .then(ka.0.total_cmp(&kb.0))
+            .then(ka.1.total_cmp(&kb.1))
             .then(a.framework.cmp(&b.framework))
     });
-    let sentences = spec
-        .energies
+    let mut budget = Budget {
+        scene: s.name.clone(),
+        fps: spec.fps,
+        budget_ms: spec.budget_ms,
+        frames,
+        reference: reference_label,
+        rank_by,
+        criterion: spec.criterion,
+        cost_cap: spec.cost_cap,
+        references,
+        trials,
+        rows,
+        sentences: Vec::new(),
+    };
+    budget.sentences = energies
         .iter()
-        .map(|&e| sentence(&rows, e, spec))
+        .map(|&e| table::sentence(&budget, e, spec))
         .collect();
     Ok(BudgetRun {
-        budget: Budget {
-            scene: s.name.clone(),
-            fps: spec.fps,
-            budget_ms: spec.budget_ms,
-            frames,
-            reference: reference_label,
-            trials,
-            rows,
-            sentences,
-        },
-        rest: mesh.0,
-        triangles: mesh.1,
+        budget,
+        layout: lay,
         trajectories: kept,
     })
 }
 
-/// One sentence naming the best framework of `energy` within the budget.
-fn sentence(rows: &[Row], energy: EnergyKind, spec: &BudgetSpec) -> String {
-    let mine: Vec<&Row> = rows.iter().filter(|r| r.energy == energy).collect();
-    let within: Vec<&Row> = mine.iter().copied().filter(|r| r.best.is_some()).collect();
-    let head = format!(
-        "{energy} at {} Hz within {} ms per frame",
-        fmt_num(spec.fps),
-        fmt_num(spec.budget_ms)
-    );
-    match within.first() {
-        None => format!("{head}: no framework has a stable setting within the budget."),
-        Some(r) => {
-            let b = r.best.as_ref().expect("filtered");
-            let mut out = format!(
-                "{head}: {} ({}) is the most accurate, position RMS {} m, {} ms per frame",
-                r.framework.name(),
-                b.setting,
-                sci(b.errors.position_rms),
-                fmt_num(b.ms_per_frame)
-            );
-            if let Some(next) = within.get(1) {
-                let n = next.best.as_ref().expect("filtered");
-                let _ = write!(
-                    out,
-                    "; next {} ({}), {} m",
-                    next.framework.name(),
-                    n.setting,
-                    sci(n.errors.position_rms)
-                );
-            }
-            out.push('.');
-            out
-        }
-    }
-}
-
-fn sci(x: f64) -> String {
+pub(crate) fn sci(x: f64) -> String {
     format!("{x:.2e}")
 }
 
-fn fmt_num(x: f64) -> String {
+pub(crate) fn fmt_num(x: f64) -> String {
     if x >= 100.0 || (x.fract() == 0.0 && x.abs() < 1e15) {
         format!("{x:.0}")
     } else if x >= 1.0 {
@@ -662,176 +925,27 @@ fn fmt_num(x: f64) -> String {
     }
 }
 
-impl Budget {
-    /// The ranked table (one section per energy), the sentences and the reference.
-    pub fn to_markdown(&self) -> String {
-        let mut s = format!(
-            "# Frame budget: {} at {} Hz, {} ms per frame (one thread)\n\n\
-             {} frames; reference: {}. Errors over the whole mesh and every frame: position \
-             RMS and max (m), peak von Mises (relative), absolute area error (relative), most \
-             inverted triangles in a frame.\n\n",
-            self.scene,
-            fmt_num(self.fps),
-            fmt_num(self.budget_ms),
-            self.frames,
-            self.reference
-        );
-        for sentence in &self.sentences {
-            let _ = writeln!(s, "- {sentence}");
-        }
-        let mut energy = None;
-        for r in &self.rows {
-            if energy != Some(r.energy) {
-                energy = Some(r.energy);
-                let _ = write!(
-                    s,
-                    "\n## {}\n\n| rank | framework | best within budget | ms/frame | position RMS | position max | peak von Mises | area | inverted | cheapest stable | its ms/frame | its position RMS |\n|---:|---|---|---:|---:|---:|---:|---:|---:|---|---:|---:|\n",
-                    r.energy
-                );
-            }
-            let rank = self
-                .rows
-                .iter()
-                .filter(|o| o.energy == r.energy)
-                .position(|o| o.framework == r.framework)
-                .unwrap_or(0)
-                + 1;
-            if let Some(why) = &r.cannot_run {
-                let _ = writeln!(
-                    s,
-                    "| - | {} | cannot run: {why} | | | | | | | | | |",
-                    r.framework.name()
-                );
-                continue;
-            }
-            let (b, bm, br, bx, bv, ba, bi) = match &r.best {
-                Some(t) => (
-                    t.setting.clone(),
-                    fmt_num(t.ms_per_frame),
-                    sci(t.errors.position_rms),
-                    sci(t.errors.position_max),
-                    sci(t.errors.peak_von_mises),
-                    sci(t.errors.area),
-                    t.errors.inverted.to_string(),
-                ),
-                None => (
-                    "none within the budget".into(),
-                    String::new(),
-                    String::new(),
-                    String::new(),
-                    String::new(),
-                    String::new(),
-                    String::new(),
-                ),
-            };
-            let (c, cm, cr) = match &r.cheapest {
-                Some(t) => (
-                    t.setting.clone(),
-                    fmt_num(t.ms_per_frame),
-                    sci(t.errors.position_rms),
-                ),
-                None => ("none stable".into(), String::new(), String::new()),
-            };
-            let _ = writeln!(
-                s,
-                "| {rank} | {} | {b} | {bm} | {br} | {bx} | {bv} | {ba} | {bi} | {c} | {cm} | {cr} |",
-                r.framework.name()
-            );
-        }
-        s
-    }
-
-    /// Every trial, one CSV row each.
-    pub fn to_csv(&self) -> String {
-        let mut s = String::from(
-            "energy,framework,setting,stable,ms_per_frame,position_rms,position_max,peak_von_mises,area,inverted\n",
-        );
-        for t in &self.trials {
-            let _ = writeln!(
-                s,
-                "{},{},{},{},{},{},{},{},{},{}",
-                t.energy,
-                t.framework.name(),
-                t.setting,
-                t.stable,
-                t.ms_per_frame,
-                t.errors.position_rms,
-                t.errors.position_max,
-                t.errors.peak_von_mises,
-                t.errors.area,
-                t.errors.inverted
-            );
-        }
-        s
-    }
-
-    /// One chart per energy: position RMS against ms per frame for every stable setting, a
-    /// curve per framework (log-log), and the budget as a vertical line.
-    pub fn charts(&self) -> Vec<(EnergyKind, fem_render::chart::LineChart)> {
-        use fem_render::chart::{LineChart, Scale, Series};
-        let mut energies: Vec<EnergyKind> = Vec::new();
-        for t in &self.trials {
-            if !energies.contains(&t.energy) {
-                energies.push(t.energy);
-            }
-        }
-        energies
-            .into_iter()
-            .map(|e| {
-                let mut series = Vec::new();
-                let (mut lo, mut hi) = (f64::INFINITY, 0.0f64);
-                for f in Framework::ALL {
-                    let points: Vec<(f64, f64)> = self
-                        .trials
-                        .iter()
-                        .filter(|t| t.energy == e && t.framework == f && t.stable)
-                        .map(|t| (t.ms_per_frame, t.errors.position_rms))
-                        .filter(|p| p.0 > 0.0 && p.1 > 0.0)
-                        .collect();
-                    for p in &points {
-                        lo = lo.min(p.1);
-                        hi = hi.max(p.1);
-                    }
-                    if !points.is_empty() {
-                        series.push(Series {
-                            label: f.name().into(),
-                            points,
-                        });
-                    }
-                }
-                if lo.is_finite() {
-                    series.push(Series {
-                        label: "budget".into(),
-                        points: vec![(self.budget_ms, lo), (self.budget_ms, hi)],
-                    });
-                }
-                (
-                    e,
-                    LineChart {
-                        title: format!(
-                            "{}: {e} at {} Hz, error against cost per frame",
-                            self.scene,
-                            fmt_num(self.fps)
-                        ),
-                        x_label: "ms per frame (one thread)".into(),
-                        y_label: "position RMS against the reference [m]".into(),
-                        x_scale: Scale::Log,
-                        y_scale: Scale::Log,
-                        series,
-                        markers: true,
-                        ..LineChart::default()
-                    },
-                )
-            })
-            .collect()
+/// A relative error as a percentage with two significant digits (`-` when undefined).
+pub(crate) fn pct(x: Option<f64>) -> String {
+    match x {
+        None => "-".into(),
+        Some(x) if !x.is_finite() => "-".into(),
+        Some(x) if x >= 0.1 => format!("{:.0} %", 100.0 * x),
+        Some(x) if x >= 0.01 => format!("{:.1} %", 100.0 * x),
+        Some(x) => format!("{:.2} %", 100.0 * x),
     }
 }
 
 impl BudgetRun {
-    /// Write `budget.md`, `budget.csv`, `budget.json`, one `pareto-ENERGY.svg` and `.png` per
-    /// energy, and `trajectories.json` (the mesh, and every trajectory the table's errors come
-    /// from) into `dir`.
-    pub fn write(&self, dir: &std::path::Path) -> Result<Vec<String>, SceneError> {
+    /// Write `budget.md`, `budget.csv`, `budget.json`, one `pareto-ENERGY.svg` and `.png` and
+    /// one `phases-ENERGY.svg` and `.png` per energy, and with `trajectories`
+    /// `trajectories.json` (the layout, the windows, and every trajectory the table's errors
+    /// come from) into `dir`.
+    pub fn write(
+        &self,
+        dir: &std::path::Path,
+        trajectories: bool,
+    ) -> Result<Vec<String>, SceneError> {
         use crate::run::write_atomic;
         let render = |e: fem_render::RenderError| SceneError::Io(e.to_string());
         let mut written = Vec::new();
@@ -845,15 +959,34 @@ impl BudgetRun {
         let json = serde_json::to_string_pretty(&self.budget)
             .map_err(|e| SceneError::Io(format!("budget.json: {e}")))?;
         put("budget.json", json.as_bytes())?;
-        for (energy, chart) in self.budget.charts() {
+        for (prefix, energy, chart) in self
+            .budget
+            .charts()
+            .into_iter()
+            .map(|(e, c)| ("pareto", e, c))
+            .chain(
+                self.phase_charts()
+                    .into_iter()
+                    .map(|(e, c)| ("phases", e, c)),
+            )
+        {
             let svg = chart.to_svg().map_err(render)?;
-            put(&format!("pareto-{}.svg", energy.name()), svg.as_bytes())?;
+            put(&format!("{prefix}-{}.svg", energy.name()), svg.as_bytes())?;
             let png = chart.to_png().map_err(render)?.to_png().map_err(render)?;
-            put(&format!("pareto-{}.png", energy.name()), &png)?;
+            put(&format!("{prefix}-{}.png", energy.name()), &png)?;
+        }
+        if !trajectories {
+            return Ok(written);
         }
         let value = serde_json::json!({
-            "rest": self.rest,
-            "triangles": self.triangles,
+            "layout": self.layout,
+            "settle": self.budget.references.first().map(|r| r.windows.settle),
+            "windows": self
+                .budget
+                .references
+                .iter()
+                .map(|r| (r.energy.name().to_owned(), r.windows))
+                .collect::<std::collections::BTreeMap<_, _>>(),
             "trajectories": self
                 .trajectories
                 .iter()

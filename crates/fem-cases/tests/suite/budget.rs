@@ -1,7 +1,14 @@
-//! `fem_cases::budget` on case A: the ranking does not change between two runs, and every
-//! error the table reports is recomputed from the written trajectories.
+//! `fem_cases::budget`: the ranking does not change between two runs (case A, and case D with
+//! its regions and contact), every error the tables report is recomputed from the written
+//! trajectories, case D's windows are found, a deliberately poor setting ranks last on the
+//! soft tissue's stress, and the iterative solvers' tolerance rungs approach implicit Euler's
+//! step.
 
-use fem_cases::budget::{BudgetSpec, Framework, Trajectory, budget, errors};
+use std::sync::OnceLock;
+
+use fem_cases::budget::{
+    BudgetRun, BudgetSpec, Framework, Layout, Phase, RankBy, Trajectory, Windows, budget, errors,
+};
 use fem_cases::files::load_case_or_file;
 use fem_core::energy::EnergyKind;
 
@@ -13,30 +20,72 @@ fn spec() -> BudgetSpec {
     }
 }
 
+/// Case D, 0.7 s (the reference settles about 0.46 s in), with a budget of one second a
+/// frame: the ladders are not cut by cost and every setting is within the budget, so the
+/// ranking depends on the errors alone (deterministic), not on this machine's timing. PBD (its
+/// 1-iteration rung is the deliberately poor setting), XPBD small steps and implicit Euler.
+/// Stable Neo-Hookean: under Neo-Hookean PBD below 200 iterations crushes the tissue until
+/// triangles invert, where `log J` is undefined, and the run stops (so its poorest setting
+/// would not rank at all); the inversion-safe energy keeps every rung running.
+fn case_d_spec() -> BudgetSpec {
+    BudgetSpec {
+        duration: Some(0.7),
+        budget_ms: 1000.0,
+        energies: vec![EnergyKind::StableNeoHookean],
+        frameworks: vec![
+            Framework::Pbd,
+            Framework::XpbdSmallSteps,
+            Framework::Implicit,
+        ],
+        ..BudgetSpec::default()
+    }
+}
+
+fn case_d() -> &'static BudgetRun {
+    static RUN: OnceLock<BudgetRun> = OnceLock::new();
+    RUN.get_or_init(|| {
+        let base = load_case_or_file("case-d", &[]).unwrap();
+        budget(&base, &case_d_spec(), |_| {}).unwrap()
+    })
+}
+
+type Ranking = Vec<(EnergyKind, Framework, Option<String>)>;
+
+fn ranking(b: &fem_cases::budget::Budget) -> Ranking {
+    b.rows
+        .iter()
+        .map(|r| {
+            (
+                r.energy,
+                r.framework,
+                r.best.as_ref().map(|t| t.setting.clone()),
+            )
+        })
+        .collect()
+}
+
 /// Case A at 90 Hz: every framework runs (no contact), ranked by position error within the
-/// 5 ms budget; the ranking is the same in a second run (the errors are deterministic and
-/// case A's 160 triangles cost far below the budget, so timing noise cannot move a setting
-/// across it).
+/// 5 ms budget (the default without regions or contact); the ranking is the same in a second
+/// run (the errors are deterministic and case A's 160 triangles cost far below the budget, so
+/// timing noise cannot move a setting across it).
 #[test]
 fn case_a_ranking_is_the_same_in_two_runs() {
     let base = load_case_or_file("case-a", &[]).unwrap();
     let first = budget(&base, &spec(), |_| {}).unwrap().budget;
     let second = budget(&base, &spec(), |_| {}).unwrap().budget;
-    let ranking = |b: &fem_cases::budget::Budget| -> Vec<(EnergyKind, Framework, Option<String>)> {
-        b.rows
-            .iter()
-            .map(|r| {
-                (
-                    r.energy,
-                    r.framework,
-                    r.best.as_ref().map(|t| t.setting.clone()),
-                )
-            })
-            .collect()
-    };
+    assert_eq!(first.rank_by, RankBy::Position);
     assert_eq!(ranking(&first), ranking(&second));
     for s in &first.sentences {
         eprintln!("{s}");
+        assert!(
+            s.contains("ranked by position RMS over the whole run"),
+            "{s}"
+        );
+    }
+    // No contact: no phases.
+    for r in &first.references {
+        assert_eq!(r.windows.impact, None);
+        assert_eq!(r.windows.sustained, None);
     }
     // Projective Dynamics cannot run Neo-Hookean and says so; every other row has a stable
     // setting within the budget.
@@ -54,7 +103,7 @@ fn case_a_ranking_is_the_same_in_two_runs() {
             .iter()
             .find(|r| r.energy == e && r.framework == f)
             .and_then(|r| r.best.as_ref())
-            .map(|t| t.errors.position_rms)
+            .map(|t| t.errors.whole.position_rms)
             .unwrap()
     };
     assert!(
@@ -67,35 +116,215 @@ fn case_a_ranking_is_the_same_in_two_runs() {
     );
 }
 
-/// The table's errors are those of the written trajectories: recomputed from
-/// `trajectories.json`, every row's best setting gives the same numbers, bit for bit.
+/// With a residual tolerance the iterative solvers approach implicit Euler's step at the same
+/// frame step: on case A, the position error (against the converged reference) of VBD's,
+/// quasi-Newton's and (co-rotational) Projective Dynamics' tightest tolerance rung is within
+/// 2 % of implicit Euler's at Newton's tolerance 1e-8 (both then carry implicit Euler's own
+/// numerical damping, 3.5e-2 m RMS; the 2 % is the part of the iterative solvers' residual
+/// still left at their tolerance 1e-6 and 200 iterations at most), and each rung reports the
+/// iterations it used, fewer than the fixed ladder's top where the tolerance was met.
 #[test]
-fn every_reported_error_is_recomputed_from_the_written_trajectories() {
+fn tolerance_rungs_approach_implicit_euler_on_case_a() {
     let base = load_case_or_file("case-a", &[]).unwrap();
-    let run = budget(&base, &spec(), |_| {}).unwrap();
-    let dir = std::env::temp_dir().join(format!("fem2d-budget-{}", std::process::id()));
+    let spec = BudgetSpec {
+        duration: Some(0.5),
+        budget_ms: 1000.0,
+        energies: vec![EnergyKind::Corotational],
+        frameworks: vec![
+            Framework::Vbd,
+            Framework::Pd,
+            Framework::QuasiNewton,
+            Framework::Implicit,
+        ],
+        ..BudgetSpec::default()
+    };
+    let b = budget(&base, &spec, |_| {}).unwrap().budget;
+    let trial = |f: Framework, tol: f64| {
+        b.trials
+            .iter()
+            .find(|t| t.framework == f && t.tolerance == Some(tol))
+            .unwrap_or_else(|| panic!("{f:?} {tol}"))
+    };
+    let implicit = trial(Framework::Implicit, 1e-8).errors.whole.position_rms;
+    for f in [Framework::Vbd, Framework::Pd, Framework::QuasiNewton] {
+        let loose = trial(f, 1e-2);
+        let tight = trial(f, 1e-6);
+        assert!(loose.stable && tight.stable, "{f:?}");
+        let (el, et) = (
+            loose.errors.whole.position_rms,
+            tight.errors.whole.position_rms,
+        );
+        eprintln!(
+            "{f:?}: tolerance 1e-2 {el:.4e} m ({:.1} it/frame), 1e-6 {et:.4e} m ({:.1} it/frame), implicit {implicit:.4e} m",
+            loose.iterations_per_frame, tight.iterations_per_frame
+        );
+        assert!(
+            (et - implicit).abs() <= 0.02 * implicit,
+            "{f:?}: {et} against implicit Euler's {implicit}"
+        );
+        assert!(
+            (el - implicit).abs() >= (et - implicit).abs(),
+            "{f:?}: the looser tolerance is not further from implicit Euler's step"
+        );
+        assert!(loose.iterations_per_frame <= tight.iterations_per_frame);
+        assert!(loose.iterations_per_frame > 0.0 && loose.iterations_per_frame < 200.0);
+    }
+}
+
+/// The table's errors are those of the written trajectories: recomputed from
+/// `trajectories.json` (the layout, the windows found again on each reference, the
+/// trajectories), every row's best setting and each reference's own error give the same
+/// numbers, bit for bit.
+fn recompute_from_written(run: &BudgetRun, tag: &str) -> usize {
+    let dir = std::env::temp_dir().join(format!("fem2d-budget-{tag}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
-    run.write(&dir).unwrap();
+    run.write(&dir, true).unwrap();
     let text = std::fs::read_to_string(dir.join("trajectories.json")).unwrap();
     let v: serde_json::Value = serde_json::from_str(&text).unwrap();
-    let rest: Vec<[f64; 2]> = serde_json::from_value(v["rest"].clone()).unwrap();
-    let triangles: Vec<[u32; 3]> = serde_json::from_value(v["triangles"].clone()).unwrap();
+    let layout: Layout = serde_json::from_value(v["layout"].clone()).unwrap();
     let trajectory = |name: &str| -> Trajectory {
         serde_json::from_value(v["trajectories"][name].clone())
             .unwrap_or_else(|e| panic!("{name}: {e}"))
     };
     let written: fem_cases::budget::Budget =
         serde_json::from_str(&std::fs::read_to_string(dir.join("budget.json")).unwrap()).unwrap();
+    assert_eq!(written, run.budget, "budget.json does not read back");
     let mut checked = 0;
-    for r in &written.rows {
-        let Some(best) = &r.best else { continue };
-        let reference = trajectory(&format!("{}-reference", r.energy.name()));
-        let mine = trajectory(&format!("{}-{}", r.energy.name(), r.framework.name()));
-        let again = errors(&rest, &triangles, &mine, &reference);
-        assert_eq!(again, best.errors, "{:?} {:?}", r.energy, r.framework);
-        checked += 1;
+    for r in &written.references {
+        let e = r.energy.name();
+        let reference = trajectory(&format!("{e}-reference"));
+        let windows = Windows::find(&layout, &reference, r.windows.settle);
+        assert_eq!(windows, r.windows);
+        let stored: Windows = serde_json::from_value(v["windows"][e].clone()).unwrap();
+        assert_eq!(stored, windows);
+        let coarse = trajectory(&format!("{e}-reference-coarse"));
+        assert_eq!(errors(&layout, &windows, &coarse, &reference), r.error);
+        for row in written.rows.iter().filter(|row| row.energy == r.energy) {
+            let Some(best) = &row.best else { continue };
+            let mine = trajectory(&format!("{e}-{}", row.framework.name()));
+            let again = errors(&layout, &windows, &mine, &reference);
+            assert_eq!(again, best.errors, "{e} {:?}", row.framework);
+            assert_eq!(
+                written.rank_by.value(&again, &windows),
+                best.rank_value,
+                "{e} {:?}",
+                row.framework
+            );
+            checked += 1;
+        }
     }
-    assert!(checked >= 10, "{checked}");
     let _ = std::fs::remove_dir_all(&dir);
+    checked
+}
+
+#[test]
+fn every_reported_error_is_recomputed_from_the_written_trajectories() {
+    let base = load_case_or_file("case-a", &[]).unwrap();
+    let run = budget(&base, &spec(), |_| {}).unwrap();
+    let checked = recompute_from_written(&run, "a");
+    assert!(checked >= 10, "{checked}");
+}
+
+/// The same on case D: stress per region (soft tissue and the rigid bones' wrench), contact
+/// pressure per target (ground and debris), per window.
+#[test]
+fn case_d_errors_per_region_phase_and_contact_are_recomputed_from_the_trajectories() {
+    let run = case_d();
+    let checked = recompute_from_written(run, "d");
+    assert_eq!(checked, 3);
+    let best = run.budget.rows[0].best.as_ref().unwrap();
+    let s = best.errors.sustained.as_ref().unwrap();
+    // The soft tissue, the bones (rigid: wrench, not stress), the ground and the debris.
+    let names: Vec<&str> = s.regions.iter().map(|r| r.region.as_str()).collect();
+    assert_eq!(names, ["soft-tissue", "bone"]);
+    assert!(s.regions[0].stress_l2.is_some() && s.regions[0].force.is_none());
+    assert!(s.regions[1].stress_l2.is_none() && s.regions[1].force.is_some());
+    let targets: Vec<&str> = s.contact.iter().map(|c| c.target.as_str()).collect();
+    assert_eq!(targets, ["ground", "debris"]);
+    for c in &s.contact {
+        assert!(
+            c.reference_peak_pressure > 0.0 && c.reference_impulse > 0.0,
+            "{c:?}"
+        );
+    }
+    // With only the soft tissue deformable, its stress is the tissue's.
+    assert_eq!(s.stress_l2, s.regions[0].stress_l2);
+}
+
+/// Case D's windows: the impact starts at the first contact (the body settles on the ground
+/// in the first frames, the debris lands on the shin 2 mm below it) and ends once the
+/// reference's kinetic energy stays below 1 % of its peak; the sustained phase starts after
+/// the soft tissue's peak stress, and both windows are non-empty.
+#[test]
+fn case_d_windows_are_found_and_the_sustained_phase_follows_the_peak() {
+    let run = case_d();
+    let r = &run.budget.references[0];
+    let impact = r.windows.impact.expect("an impact window");
+    let sustained = r.windows.sustained.expect("a sustained window");
+    assert!(impact[0] < impact[1] && impact[1] == sustained[0]);
+    assert!(sustained[0] < sustained[1] && sustained[1] == r.windows.whole[1]);
+    let reference = &run
+        .trajectories
+        .iter()
+        .find(|(n, _)| n == "stable-neo-hookean-reference")
+        .unwrap()
+        .1;
+    let lay = &run.layout;
+    let soft_peak = |f: &Vec<f64>| {
+        f.iter()
+            .enumerate()
+            .filter(|(t, v)| !lay.regions[lay.region_tags[*t] as usize].rigid && v.is_finite())
+            .map(|(_, v)| *v)
+            .fold(0.0, f64::max)
+    };
+    let peaks: Vec<f64> = reference.von_mises.iter().map(soft_peak).collect();
+    let peak_frame = (0..peaks.len())
+        .max_by(|&a, &b| peaks[a].total_cmp(&peaks[b]))
+        .unwrap();
+    eprintln!(
+        "impact {impact:?}, sustained {sustained:?}, tissue peak {:.0} Pa at frame {peak_frame}",
+        peaks[peak_frame]
+    );
+    assert!(impact[0] <= peak_frame && peak_frame < sustained[0]);
+    let ke = &reference.kinetic_energy;
+    let ke_peak = ke[impact[0]..].iter().copied().fold(0.0, f64::max);
+    assert!(ke[sustained[0]..].iter().all(|&k| k < 0.01 * ke_peak));
+    assert!(ke[impact[1] - 1] >= 0.01 * ke_peak);
+}
+
+/// The default ranking on a scene with regions and contact is the soft tissue's sustained
+/// stress; PBD with one iteration (the deliberately poor setting) has a larger error in it
+/// than every framework's best setting; two runs rank the same.
+#[test]
+fn case_d_poor_setting_ranks_last_and_the_ranking_repeats() {
+    let run = case_d();
+    let b = &run.budget;
+    assert_eq!(b.rank_by, RankBy::Stress);
+    let poor = b
+        .trials
+        .iter()
+        .find(|t| t.framework == Framework::Pbd && t.setting == "1 iterations")
+        .unwrap();
+    assert!(poor.stable, "{:?}", poor.failure);
+    let poor_value = poor.rank_value.unwrap();
+    for t in b.rows.iter().filter_map(|r| r.best.as_ref()) {
+        assert!(
+            t.rank_value.unwrap() < poor_value,
+            "{:?} {}: {:?} above PBD x 1's {poor_value}",
+            t.framework,
+            t.setting,
+            t.rank_value
+        );
+    }
+    assert!(b.sentences[0].contains("the soft tissue's von Mises stress in the sustained phase"));
+    assert!(b.sentences[0].contains("peak contact pressure"));
+    let base = load_case_or_file("case-d", &[]).unwrap();
+    let again = budget(&base, &case_d_spec(), |_| {}).unwrap().budget;
+    assert_eq!(ranking(b), ranking(&again));
+    for (x, y) in b.trials.iter().zip(&again.trials) {
+        assert_eq!(x.errors, y.errors, "{:?} {}", x.framework, x.setting);
+    }
+    let phase = b.rank_by.effective_phase(&b.references[0].windows);
+    assert_eq!(phase, Phase::Sustained);
 }

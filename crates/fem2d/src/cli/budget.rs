@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 
 use clap::Args;
-use fem_cases::budget::{BudgetSpec, Framework, budget};
+use fem_cases::budget::{BudgetSpec, Framework, RankBy, budget};
 use fem_cases::files::load_case_or_file;
 use fem_cases::outdir::OutDir;
 use fem_core::energy::EnergyKind;
@@ -36,9 +36,31 @@ pub struct BudgetArgs {
     /// pd, quasi-newton, implicit.
     #[arg(long, value_delimiter = ',')]
     pub frameworks: Vec<String>,
-    /// Write budget.md, budget.csv, budget.json, the Pareto charts and trajectories.json here.
+    /// The quantity to rank by: position, stress, stress-impact, pressure, pressure-impact
+    /// (default: stress, the soft tissue's von Mises stress in the sustained phase, when the
+    /// scene has material regions or contact; position otherwise).
+    #[arg(long = "rank-by")]
+    pub rank_by: Option<String>,
+    /// The impact window ends when the reference's kinetic energy has fallen for good below
+    /// this fraction of its peak (default 0.01).
+    #[arg(long)]
+    pub settle: Option<f64>,
+    /// The relative error within which the sustained soft tissue stress and the peak contact
+    /// pressure must stay (default 0.05).
+    #[arg(long)]
+    pub criterion: Option<f64>,
+    /// Steps per frame of the reference, implicit Euler (default 10 with contact, 100
+    /// without); its own error is estimated against half as many.
+    #[arg(long = "reference-steps")]
+    pub reference_steps: Option<u64>,
+    /// Write budget.md, budget.csv, budget.json and the charts here.
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
+    /// Also write trajectories.json into --out: the layout, the windows and every trajectory
+    /// the errors come from (large: about 1 MB per trajectory per 100 frames of a mesh of
+    /// 1000 vertices).
+    #[arg(long, requires = "out")]
+    pub trajectories: bool,
 }
 
 /// Runs `fem2d budget`.
@@ -55,6 +77,16 @@ pub fn run(args: &BudgetArgs) -> Result<(), String> {
         spec.budget_ms = b;
     }
     spec.duration = args.duration;
+    if let Some(r) = &args.rank_by {
+        spec.rank_by = Some(RankBy::parse(r).map_err(|err| format!("--rank-by: {err}"))?);
+    }
+    if let Some(x) = args.settle {
+        spec.settle = x;
+    }
+    spec.reference_steps = args.reference_steps;
+    if let Some(x) = args.criterion {
+        spec.criterion = x;
+    }
     if !args.energies.is_empty() {
         spec.energies = args
             .energies
@@ -82,7 +114,9 @@ pub fn run(args: &BudgetArgs) -> Result<(), String> {
         budget(&base, &spec, |what| eprintln!("budget: {what}")).map_err(|e| e.to_string())?;
     print!("{}", result.budget.to_markdown());
     if let (Some(out), Some(target)) = (out, &args.out) {
-        let written = result.write(out.path()).map_err(|e| e.to_string())?;
+        let written = result
+            .write(out.path(), args.trajectories)
+            .map_err(|e| e.to_string())?;
         out.commit().map_err(|e| e.to_string())?;
         println!("wrote {} in {}", written.join(", "), target.display());
     }

@@ -1,0 +1,570 @@
+//! What a budget run records frame by frame ([`Trajectory`]), the phases it is judged over
+//! ([`Windows`]) and its errors against the reference ([`Errors`]).
+//!
+//! Everything here is a pure function of the recorded trajectories and the [`Layout`], so the
+//! written `trajectories.json` reproduces every number of the tables bit for bit.
+
+use fem_scene::SceneError;
+use fem_scene::run::{Frame, FrameSink};
+use serde::{Deserialize, Serialize};
+
+/// The mesh and the labels the errors are taken over (written to `trajectories.json`).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Layout {
+    /// Rest positions, m.
+    pub rest: Vec<[f64; 2]>,
+    /// Triangles.
+    pub triangles: Vec<[u32; 3]>,
+    /// The material region of each triangle (0: the base material, `k`: the `k`-th
+    /// `[[regions]]` entry).
+    pub region_tags: Vec<u32>,
+    /// Each material region: its name and whether it is rigid.
+    pub regions: Vec<RegionInfo>,
+    /// The material region of each rigid body, in the model's order.
+    pub body_regions: Vec<u32>,
+    /// The contact targets, in the order of [`Trajectory::contact`]: `ground` (when the scene
+    /// has one), then each obstacle's name.
+    pub contact_targets: Vec<String>,
+    /// Whether the first contact target is the ground.
+    pub has_ground: bool,
+    /// Seconds per frame.
+    pub frame_dt: f64,
+}
+
+/// A material region's name and kind.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct RegionInfo {
+    /// The region's name.
+    pub name: String,
+    /// Whether it is rigid (reports its wrench, not its stress).
+    pub rigid: bool,
+}
+
+impl Layout {
+    /// Rest area of each triangle, m^2.
+    pub fn areas(&self) -> Vec<f64> {
+        self.triangles.iter().map(|t| area(&self.rest, t)).collect()
+    }
+
+    /// Whether triangle `t` is soft tissue (in a deformable region).
+    fn soft(&self, t: usize) -> bool {
+        !self.regions[self.region_tags[t] as usize].rigid
+    }
+}
+
+fn area(x: &[[f64; 2]], t: &[u32; 3]) -> f64 {
+    let (a, b, c) = (x[t[0] as usize], x[t[1] as usize], x[t[2] as usize]);
+    0.5 * ((b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]))
+}
+
+/// A run's record, one entry per frame (the first at t = 0).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Trajectory {
+    /// Positions, m.
+    pub frames: Vec<Vec<[f64; 2]>>,
+    /// Per-triangle von Mises stress, Pa (rigid triangles 0; `null` in JSON where the stress
+    /// is undefined, an inverted triangle; such a triangle counts as unstressed in the errors,
+    /// so its whole reference stress is error).
+    #[serde(with = "nan_null")]
+    pub von_mises: Vec<Vec<f64>>,
+    /// Per contact target ([`Layout::contact_targets`]): `[peak vertex pressure (Pa), total
+    /// normal force (N per metre of thickness)]` of the contacts of the step that produced
+    /// the frame (pressure as in [`fem_solvers::pressure`], the target's contacts alone).
+    pub contact: Vec<Vec<[f64; 2]>>,
+    /// Per rigid body: the tissue's force on it (x, y; N per metre) and torque about its
+    /// centroid (N m per metre).
+    pub rigid: Vec<Vec<[f64; 3]>>,
+    /// The body's kinetic energy (soft and rigid triangles, lumped masses), J per metre.
+    pub kinetic_energy: Vec<f64>,
+}
+
+/// `null` for NaN, both ways (JSON has no NaN).
+mod nan_null {
+    use serde::{Deserialize, Deserializer, Serialize, Serializer};
+
+    pub fn serialize<S: Serializer>(v: &[Vec<f64>], s: S) -> Result<S::Ok, S::Error> {
+        let opt: Vec<Vec<Option<f64>>> = v
+            .iter()
+            .map(|f| f.iter().map(|x| x.is_finite().then_some(*x)).collect())
+            .collect();
+        opt.serialize(s)
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<Vec<f64>>, D::Error> {
+        let opt: Vec<Vec<Option<f64>>> = Vec::deserialize(d)?;
+        Ok(opt
+            .into_iter()
+            .map(|f| f.into_iter().map(|x| x.unwrap_or(f64::NAN)).collect())
+            .collect())
+    }
+}
+
+/// A [`FrameSink`] filling a [`Trajectory`].
+pub(crate) struct Recorder {
+    pub trajectory: Trajectory,
+    /// The mesh and its regions, from the first frame (targets and frame step left empty).
+    pub layout: Layout,
+    /// Stop the run (an error from the sink) once this many seconds passed since the first
+    /// frame.
+    cap: Option<f64>,
+    started: Option<std::time::Instant>,
+    /// The run was stopped by the cap.
+    pub over_cap: bool,
+    /// Lumped vertex masses, kg per metre (sized on the first frame).
+    masses: Vec<f64>,
+    edges: Vec<[u32; 2]>,
+    /// Scratch: one target's contacts.
+    mine: Vec<fem_solvers::Contact>,
+    pressure: fem_solvers::ContactPressure,
+    has_ground: bool,
+    obstacles: usize,
+}
+
+impl Recorder {
+    pub(crate) fn new(has_ground: bool, obstacles: usize, cap: Option<f64>) -> Self {
+        Recorder {
+            trajectory: Trajectory::default(),
+            layout: Layout::default(),
+            cap,
+            started: None,
+            over_cap: false,
+            masses: Vec::new(),
+            edges: Vec::new(),
+            mine: Vec::new(),
+            pressure: fem_solvers::ContactPressure::new(),
+            has_ground,
+            obstacles,
+        }
+    }
+}
+
+impl FrameSink for Recorder {
+    fn frame(&mut self, f: &Frame<'_>) -> Result<(), SceneError> {
+        use fem_solvers::ContactKind;
+        match (self.started, self.cap) {
+            (None, _) => self.started = Some(std::time::Instant::now()),
+            (Some(t0), Some(cap)) if t0.elapsed().as_secs_f64() > cap => {
+                self.over_cap = true;
+                return Err(SceneError::Usage("over the budget's cost cap".into()));
+            }
+            _ => {}
+        }
+        if self.masses.is_empty() {
+            let tags = &f.regions.tags;
+            let mut body_regions = vec![0u32; f.rigid.len()];
+            for (t, &b) in f.rigid_tags.iter().enumerate() {
+                if b > 0 {
+                    body_regions[b as usize - 1] = tags[t];
+                }
+            }
+            self.layout = Layout {
+                rest: f.mesh.vertices().iter().map(|p| [p.x, p.y]).collect(),
+                triangles: f.mesh.triangles().to_vec(),
+                region_tags: tags.clone(),
+                regions: f
+                    .regions
+                    .materials
+                    .iter()
+                    .map(|m| RegionInfo {
+                        name: m.name.clone(),
+                        rigid: m.rigid,
+                    })
+                    .collect(),
+                body_regions,
+                contact_targets: Vec::new(),
+                has_ground: false,
+                frame_dt: 0.0,
+            };
+            self.masses = f
+                .mesh
+                .lumped_masses_from_densities(&f.regions.element_densities())
+                .map_err(|e| SceneError::Scene(format!("budget: lumped masses: {e}")))?;
+            self.edges = fem_solvers::model::boundary_edges(f.mesh.triangles());
+        }
+        let t = &mut self.trajectory;
+        t.frames
+            .push(f.positions.iter().map(|p| [p.x, p.y]).collect());
+        t.von_mises.push(f.von_mises.to_vec());
+        let kinetic: f64 = f
+            .velocities
+            .iter()
+            .zip(&self.masses)
+            .map(|(v, m)| 0.5 * m * v.norm_squared())
+            .sum();
+        t.kinetic_energy.push(kinetic);
+        t.rigid.push(
+            f.rigid
+                .iter()
+                .map(|b| [b.force[0], b.force[1], b.torque])
+                .collect(),
+        );
+        // Targets: the ground (when there is one), then each obstacle.
+        let targets = usize::from(self.has_ground) + self.obstacles;
+        let mut row = Vec::with_capacity(targets);
+        for k in 0..targets {
+            let ground = self.has_ground && k == 0;
+            let obstacle = k.saturating_sub(usize::from(self.has_ground)) as u32;
+            self.mine.clear();
+            self.mine
+                .extend(f.contacts.iter().copied().filter(|c| match c.kind {
+                    ContactKind::VertexGround { .. } => ground,
+                    ContactKind::VertexObstacle { obstacle: o, .. }
+                    | ContactKind::CornerEdge { obstacle: o, .. } => !ground && o == obstacle,
+                    _ => false,
+                }));
+            self.pressure
+                .update_parts(&self.edges, f.positions, &self.mine);
+            row.push([
+                self.pressure.peak().map_or(0.0, |p| p.pressure),
+                self.pressure.total_force(),
+            ]);
+        }
+        t.contact.push(row);
+        Ok(())
+    }
+}
+
+/// A half-open range of frame indices `[start, end)`.
+pub type Span = [usize; 2];
+
+/// The phases a run is judged over, found on the reference.
+///
+/// - **whole**: every frame.
+/// - **impact**: from the first frame with contact in the reference (with an obstacle; with
+///   the ground when the scene has no obstacle) until its kinetic energy has fallen for good
+///   below `settle` times its peak (the peak taken from the first contact on): it ends after
+///   the last frame at or above that threshold.
+/// - **sustained**: the frames after the impact window, to the end of the run.
+///
+/// Without contact in the reference there are no phases (both `None`). A reference that
+/// does not settle within the run has an impact window to the end and no sustained window.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Windows {
+    /// Every frame.
+    pub whole: Span,
+    /// The impact window.
+    pub impact: Option<Span>,
+    /// The sustained window.
+    pub sustained: Option<Span>,
+    /// The kinetic-energy fraction that ends the impact.
+    pub settle: f64,
+}
+
+impl Windows {
+    /// The windows of `reference` on `layout` (see the type's docs).
+    pub fn find(layout: &Layout, reference: &Trajectory, settle: f64) -> Windows {
+        let n = reference.frames.len();
+        // The obstacles' targets, or the ground alone.
+        let from = usize::from(layout.has_ground && layout.contact_targets.len() > 1);
+        let contact_at = |f: usize| {
+            reference
+                .contact
+                .get(f)
+                .is_some_and(|row| row.iter().skip(from).any(|c| c[1] > 0.0))
+        };
+        let mut w = Windows {
+            whole: [0, n],
+            impact: None,
+            sustained: None,
+            settle,
+        };
+        let Some(first) = (0..n).find(|&f| contact_at(f)) else {
+            return w;
+        };
+        let ke = &reference.kinetic_energy;
+        let peak = ke[first..].iter().copied().fold(0.0, f64::max);
+        let threshold = settle * peak;
+        let end = (first..n)
+            .rev()
+            .find(|&f| ke[f] >= threshold)
+            .map_or(first + 1, |f| f + 1);
+        w.impact = Some([first, end]);
+        if end < n {
+            w.sustained = Some([end, n]);
+        }
+        w
+    }
+
+    /// The window named `phase`.
+    pub fn get(&self, phase: Phase) -> Option<Span> {
+        match phase {
+            Phase::Whole => Some(self.whole),
+            Phase::Impact => self.impact,
+            Phase::Sustained => self.sustained,
+        }
+    }
+}
+
+/// A phase of the run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Phase {
+    /// Every frame.
+    Whole,
+    /// From the first contact until the reference settles.
+    Impact,
+    /// After the reference settled.
+    Sustained,
+}
+
+impl Phase {
+    /// Its name in tables.
+    pub fn name(self) -> &'static str {
+        match self {
+            Phase::Whole => "whole run",
+            Phase::Impact => "impact",
+            Phase::Sustained => "sustained",
+        }
+    }
+}
+
+/// A relative error `|a - b| / |b|`; `None` when the reference `b` is 0 (undefined).
+fn relative(a: f64, b: f64) -> Option<f64> {
+    (b != 0.0).then(|| (a - b).abs() / b.abs())
+}
+
+/// A run's errors against the reference in one window.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct WindowErrors {
+    /// RMS over all vertices and the window's frames of the distance to the reference, m.
+    pub position_rms: f64,
+    /// Largest distance to the reference, m.
+    pub position_max: f64,
+    /// The soft tissue (every triangle of a deformable region): relative L2 error of the von
+    /// Mises field, `sqrt(sum_f sum_e a_e (s_e - s_e,ref)^2 / sum_f sum_e a_e s_e,ref^2)` (`a_e`
+    /// the rest area); `None` when the reference is unstressed.
+    pub stress_l2: Option<f64>,
+    /// The soft tissue's peak von Mises stress over the window, relative to the reference's.
+    pub stress_peak: Option<f64>,
+    /// The largest relative error of a contact target's peak pressure (over the targets the
+    /// reference touches in the window); `None` without contact.
+    pub pressure_peak: Option<f64>,
+    /// Per material region: stress (deformable) or wrench (rigid) errors.
+    pub regions: Vec<RegionErrors>,
+    /// Per contact target: its peak pressure and impulse errors.
+    pub contact: Vec<ContactErrors>,
+    /// Largest over frames of `sum_e |a_e - a_e,ref| / A`: the absolute area error.
+    pub area: f64,
+    /// Most triangles with `det F <= 0` in one frame.
+    pub inverted: usize,
+}
+
+/// One material region's errors in a window.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct RegionErrors {
+    /// The region's name.
+    pub region: String,
+    /// Deformable: the relative L2 error of its von Mises field (as
+    /// [`WindowErrors::stress_l2`]).
+    pub stress_l2: Option<f64>,
+    /// Deformable: the relative error of its peak von Mises stress.
+    pub stress_peak: Option<f64>,
+    /// Rigid: the relative L2 error of the tissue's force on its bodies,
+    /// `sqrt(sum |F - F_ref|^2 / sum |F_ref|^2)` over its bodies and the window's frames.
+    pub force: Option<f64>,
+    /// Rigid: the same for the torque.
+    pub torque: Option<f64>,
+}
+
+/// One contact target's errors in a window.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct ContactErrors {
+    /// `ground` or the obstacle's name.
+    pub target: String,
+    /// The reference's peak pressure over the window, Pa.
+    pub reference_peak_pressure: f64,
+    /// The relative error of the peak pressure; `None` when the reference has no contact.
+    pub peak_pressure: Option<f64>,
+    /// The reference's impulse over the window (total normal force at each frame times the
+    /// frame's duration, summed), N s per metre.
+    pub reference_impulse: f64,
+    /// The relative error of the impulse.
+    pub impulse: Option<f64>,
+}
+
+/// A run's errors against the reference: per window.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Errors {
+    /// Over every frame.
+    pub whole: WindowErrors,
+    /// Over the impact window.
+    pub impact: Option<WindowErrors>,
+    /// Over the sustained window.
+    pub sustained: Option<WindowErrors>,
+}
+
+impl Errors {
+    /// The errors of `phase`, when the phase exists.
+    pub fn get(&self, phase: Phase) -> Option<&WindowErrors> {
+        match phase {
+            Phase::Whole => Some(&self.whole),
+            Phase::Impact => self.impact.as_ref(),
+            Phase::Sustained => self.sustained.as_ref(),
+        }
+    }
+}
+
+/// The errors of `run` against `reference` over `windows`; frames beyond the shorter of the
+/// two are not compared.
+pub fn errors(
+    layout: &Layout,
+    windows: &Windows,
+    run: &Trajectory,
+    reference: &Trajectory,
+) -> Errors {
+    let n = run.frames.len().min(reference.frames.len());
+    let clip = |s: Span| [s[0].min(n), s[1].min(n)];
+    let areas = layout.areas();
+    Errors {
+        whole: window(layout, &areas, clip(windows.whole), run, reference),
+        impact: windows
+            .impact
+            .map(|s| window(layout, &areas, clip(s), run, reference)),
+        sustained: windows
+            .sustained
+            .map(|s| window(layout, &areas, clip(s), run, reference)),
+    }
+}
+
+/// Sums of a stress field's error over a set of triangles.
+#[derive(Default)]
+struct StressSums {
+    diff2: f64,
+    ref2: f64,
+    peak: f64,
+    ref_peak: f64,
+}
+
+impl StressSums {
+    fn add(&mut self, a: f64, s: f64, r: f64) {
+        let s = if s.is_finite() { s } else { 0.0 };
+        let r = if r.is_finite() { r } else { 0.0 };
+        self.diff2 += a * (s - r) * (s - r);
+        self.ref2 += a * r * r;
+        self.peak = self.peak.max(s);
+        self.ref_peak = self.ref_peak.max(r);
+    }
+
+    fn l2(&self) -> Option<f64> {
+        (self.ref2 > 0.0).then(|| (self.diff2 / self.ref2).sqrt())
+    }
+
+    fn peak(&self) -> Option<f64> {
+        relative(self.peak, self.ref_peak)
+    }
+}
+
+fn window(
+    layout: &Layout,
+    areas: &[f64],
+    span: Span,
+    run: &Trajectory,
+    reference: &Trajectory,
+) -> WindowErrors {
+    let total: f64 = areas.iter().sum();
+    let mut e = WindowErrors::default();
+    let (mut sum, mut count) = (0.0, 0usize);
+    let mut tissue = StressSums::default();
+    let mut regions: Vec<StressSums> = layout
+        .regions
+        .iter()
+        .map(|_| StressSums::default())
+        .collect();
+    // Rigid regions: [force diff^2, force ref^2, torque diff^2, torque ref^2].
+    let mut wrench = vec![[0.0f64; 4]; layout.regions.len()];
+    let targets = layout.contact_targets.len();
+    // Per target: [peak, reference peak, impulse, reference impulse].
+    let mut contact = vec![[0.0f64; 4]; targets];
+    for f in span[0]..span[1] {
+        let (x, r) = (&run.frames[f], &reference.frames[f]);
+        for (p, q) in x.iter().zip(r) {
+            let d2 = (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2);
+            sum += d2;
+            count += 1;
+            e.position_max = e.position_max.max(d2.sqrt());
+        }
+        let mut frame_area = 0.0;
+        let mut inverted = 0;
+        for t in &layout.triangles {
+            let a = area(x, t);
+            frame_area += (a - area(r, t)).abs();
+            inverted += usize::from(a <= 0.0);
+        }
+        e.area = e.area.max(frame_area / total);
+        e.inverted = e.inverted.max(inverted);
+        if let (Some(s), Some(sr)) = (run.von_mises.get(f), reference.von_mises.get(f)) {
+            for (t, (&a, (&v, &vr))) in areas.iter().zip(s.iter().zip(sr)).enumerate() {
+                if layout.soft(t) {
+                    tissue.add(a, v, vr);
+                    regions[layout.region_tags[t] as usize].add(a, v, vr);
+                }
+            }
+        }
+        if let (Some(b), Some(br)) = (run.rigid.get(f), reference.rigid.get(f)) {
+            for ((w, wr), &region) in b.iter().zip(br).zip(&layout.body_regions) {
+                let acc = &mut wrench[region as usize];
+                acc[0] += (w[0] - wr[0]).powi(2) + (w[1] - wr[1]).powi(2);
+                acc[1] += wr[0].powi(2) + wr[1].powi(2);
+                acc[2] += (w[2] - wr[2]).powi(2);
+                acc[3] += wr[2].powi(2);
+            }
+        }
+        if let (Some(c), Some(cr)) = (run.contact.get(f), reference.contact.get(f)) {
+            for (acc, (c, cr)) in contact.iter_mut().zip(c.iter().zip(cr)) {
+                acc[0] = acc[0].max(c[0]);
+                acc[1] = acc[1].max(cr[0]);
+                acc[2] += c[1] * layout.frame_dt;
+                acc[3] += cr[1] * layout.frame_dt;
+            }
+        }
+    }
+    e.position_rms = if count > 0 {
+        (sum / count as f64).sqrt()
+    } else {
+        f64::NAN
+    };
+    e.stress_l2 = tissue.l2();
+    e.stress_peak = tissue.peak();
+    e.regions = layout
+        .regions
+        .iter()
+        .enumerate()
+        .map(|(k, info)| {
+            let w = wrench[k];
+            let ratio = |d: f64, r: f64| (r > 0.0).then(|| (d / r).sqrt());
+            if info.rigid {
+                RegionErrors {
+                    region: info.name.clone(),
+                    force: ratio(w[0], w[1]),
+                    torque: ratio(w[2], w[3]),
+                    ..RegionErrors::default()
+                }
+            } else {
+                RegionErrors {
+                    region: info.name.clone(),
+                    stress_l2: regions[k].l2(),
+                    stress_peak: regions[k].peak(),
+                    ..RegionErrors::default()
+                }
+            }
+        })
+        .collect();
+    e.contact = layout
+        .contact_targets
+        .iter()
+        .zip(&contact)
+        .map(|(name, acc)| ContactErrors {
+            target: name.clone(),
+            reference_peak_pressure: acc[1],
+            peak_pressure: relative(acc[0], acc[1]),
+            reference_impulse: acc[3],
+            impulse: relative(acc[2], acc[3]),
+        })
+        .collect();
+    e.pressure_peak = e
+        .contact
+        .iter()
+        .filter_map(|c| c.peak_pressure)
+        .reduce(f64::max);
+    e
+}
