@@ -23,7 +23,7 @@ use fem_solvers::{
 };
 
 use crate::error::SceneError;
-use crate::scene::{LoadedScene, MeshKind, MotionName, ViewName};
+use crate::scene::{LoadedScene, MeshKind, MeshSpec, MotionName, ViewName};
 
 /// Where the bytes of the files a scene names (`mesh.path`: a mesh JSON or a 3D model) come
 /// from: the file system next to the scene file for the command line, memory in a browser.
@@ -85,9 +85,33 @@ pub fn preset_camera(view: ViewName, lo: [f64; 3], hi: [f64; 3]) -> Camera {
     }
 }
 
+/// The last built-in mesh built (the body, the shank) and its spec.
+static LAST_BUILT_IN: std::sync::Mutex<Option<(MeshSpec, Mesh)>> = std::sync::Mutex::new(None);
+
 /// The scene's mesh: generated, read (through `source`) or meshed from a 3D model, then
 /// rotated and placed.
+///
+/// The built-in geometries (`body`, `shank`) read no file, and their meshing is deterministic:
+/// the last one built is kept and handed out again for the same `[mesh]` table, so the runs of
+/// one scene's variants (a comparison's rows, a frame budget's rungs) mesh it once.
 pub fn build_mesh(scene: &LoadedScene, source: &dyn MeshSource) -> Result<Mesh, SceneError> {
+    let spec = &scene.scene.mesh;
+    let built_in = matches!(spec.kind, Some(MeshKind::Body | MeshKind::Shank));
+    if built_in
+        && let Ok(last) = LAST_BUILT_IN.lock()
+        && let Some((kept, mesh)) = last.as_ref()
+        && kept == spec
+    {
+        return Ok(mesh.clone());
+    }
+    let mesh = build_mesh_uncached(scene, source)?;
+    if built_in && let Ok(mut last) = LAST_BUILT_IN.lock() {
+        *last = Some((spec.clone(), mesh.clone()));
+    }
+    Ok(mesh)
+}
+
+fn build_mesh_uncached(scene: &LoadedScene, source: &dyn MeshSource) -> Result<Mesh, SceneError> {
     let spec = &scene.scene.mesh;
     let mesh_err =
         |e: fem_mesh::MeshError| SceneError::Mesh(format!("{}: mesh: {e}", scene.origin));
