@@ -229,7 +229,7 @@ impl Framework {
                         )
                     })
                     .collect();
-                l.extend(tolerances(Vec::new(), &[1e-2, 1e-3, 1e-4, 1e-6]));
+                l.extend(tolerances(Vec::new(), &[1e-2, 1e-4, 1e-6]));
                 l
             }
             Framework::Implicit => [1e-2, 1e-4, 1e-6, 1e-8]
@@ -397,7 +397,7 @@ pub struct BudgetSpec {
     /// stress (L2) and the peak contact pressure, dimensionless. Default 0.05.
     pub criterion: f64,
     /// A rung is stopped once its stepping time exceeds this many times the budget over the
-    /// whole run (it cannot be chosen, and its dearer neighbours are skipped). Default 8.
+    /// whole run (it cannot be chosen, and its dearer neighbours are skipped). Default 4.
     pub cost_cap: f64,
     /// Steps per frame of the reference (`None`: the scene's `[budget] reference_steps`, else
     /// 10 with contact, 100 without; at least 2, its own error is estimated at half as many).
@@ -415,7 +415,7 @@ impl Default for BudgetSpec {
             rank_by: None,
             settle: 0.01,
             criterion: 0.05,
-            cost_cap: 8.0,
+            cost_cap: 4.0,
             reference_steps: None,
         }
     }

@@ -197,6 +197,16 @@ impl Budget {
                     fmt_num(t.ms_per_frame),
                     rank_text(rank, t.rank_value)
                 ),
+                None if self
+                    .trials
+                    .iter()
+                    .any(|t| t.energy == r.energy && t.framework == r.framework && t.over_cap) =>
+                {
+                    format!(
+                        "none stable within {} times the budget | | ",
+                        fmt_num(self.cost_cap)
+                    )
+                }
                 None => "none stable | | ".into(),
             };
             let place = if r.best.is_some() {

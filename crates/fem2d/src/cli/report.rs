@@ -24,7 +24,7 @@ pub struct ReportArgs {
     /// Skip the animations.
     #[arg(long)]
     pub no_animations: bool,
-    /// Skip the frame budget of cases A and D (about 10 s on one core).
+    /// Skip the frame budget of cases A and D (about 40 s on one core).
     #[arg(long)]
     pub no_budget: bool,
 }
