@@ -411,7 +411,7 @@ fn page(
     }
 
     if !budgets.is_empty() {
-        h.push_str("<h2 id=\"budget\">Frame budget: 90 Hz, 5 ms per frame</h2>\n<p class=\"note\">Every energy x framework at every setting of its ladder, each advancing 1/90 s per frame on one thread, compared frame by frame with a converged reference over the whole mesh (<code>fem2d budget</code>, docs/budget.md). Case C's scene is case A's with StVK, so its budget is case A's StVK table.</p>\n");
+        h.push_str("<h2 id=\"budget\">Frame budget: 90 Hz, 5 ms per frame</h2>\n<p class=\"note\">Every energy x framework at every setting of its ladders (fixed counts and residual tolerances), each advancing 1/90 s per frame on one thread, compared frame by frame with a converged reference whose own error is stated: case A by its motion, case D by what a medic reads, the soft tissue's von Mises stress and the contact pressure, in the impact window and the sustained crush after it, with the bones' load (<code>fem2d budget</code>, docs/budget.md). Case C's scene is case A's with StVK, so its budget is case A's StVK table.</p>\n");
         for b in budgets {
             let _ = writeln!(h, "<h3>{}</h3>", b.name);
             let mut items = String::new();

@@ -611,12 +611,16 @@ pub(super) fn sentence(budget: &Budget, energy: EnergyKind, spec: &BudgetSpec) -
         None => format!("{head}: no framework has a stable setting within the budget."),
         Some(r) => {
             let b = r.best.as_ref().expect("filtered");
+            let position = if rank == RankBy::Position {
+                String::new()
+            } else {
+                format!(", position RMS {} m", sci(b.errors.whole.position_rms))
+            };
             let mut out = format!(
-                "{head}: {} ({}) is the most accurate, {}, position RMS {} m, {} ms per frame",
+                "{head}: {} ({}) is the most accurate, {}{position}, {} ms per frame",
                 r.framework.name(),
                 b.setting,
                 rank_text(rank, b.rank_value),
-                sci(b.errors.whole.position_rms),
                 fmt_num(b.ms_per_frame)
             );
             if let Some(next) = within.get(1) {

@@ -435,9 +435,12 @@ fn budget_writes_the_ranked_table_the_charts_and_the_trajectories() {
         "0.2",
         "--out",
         arg(&out),
+        "--trajectories",
     ]));
     assert!(
-        stdout.contains("neo-hookean at 90 Hz within 5 ms per frame: explicit"),
+        stdout.contains(
+            "neo-hookean at 90 Hz within 5 ms per frame, ranked by position RMS over the whole run (m): explicit"
+        ),
         "{stdout}"
     );
     assert!(stdout.contains("cannot run: Projective Dynamics runs the co-rotational energy only"));
@@ -447,10 +450,34 @@ fn budget_writes_the_ranked_table_the_charts_and_the_trajectories() {
         "budget.json",
         "pareto-neo-hookean.svg",
         "pareto-neo-hookean.png",
+        "phases-neo-hookean.svg",
+        "phases-neo-hookean.png",
         "trajectories.json",
     ] {
         assert!(out.join(f).is_file(), "{f}");
     }
+    // Without --trajectories the (large) trajectories are not written; --rank-by names the
+    // quantity.
+    let again = dir.join("c");
+    let stdout = ok(&fem2d(&[
+        "budget",
+        "case-a",
+        "--energies",
+        "neo-hookean",
+        "--frameworks",
+        "implicit",
+        "--duration",
+        "0.1",
+        "--rank-by",
+        "stress",
+        "--out",
+        arg(&again),
+    ]));
+    assert!(!again.join("trajectories.json").exists());
+    assert!(
+        stdout.contains("ranked by the soft tissue's von Mises stress over the whole run"),
+        "{stdout}"
+    );
     let csv = std::fs::read_to_string(out.join("budget.csv")).unwrap();
     assert!(csv.lines().count() > 10, "{csv}");
     // The haptics preset: 1 kHz, 0.5 ms.
@@ -484,6 +511,49 @@ fn budget_rejects_bad_settings_in_one_line() {
     );
     let e = one_line_error(&fem2d(&["budget", "case-a", "--duration", "1e9"]));
     assert!(e.contains("at most 100000"), "{e}");
+    let e = one_line_error(&fem2d(&["budget", "case-a", "--rank-by", "beauty"]));
+    assert!(
+        e.contains("--rank-by: unknown quantity `beauty`") && e.contains("stress-impact"),
+        "{e}"
+    );
+    let e = one_line_error(&fem2d(&["budget", "case-a", "--settle", "1"]));
+    assert!(
+        e.contains("--settle 1: must be in the open interval (0, 1)"),
+        "{e}"
+    );
+    let e = one_line_error(&fem2d(&["budget", "case-a", "--reference-steps", "1"]));
+    assert!(
+        e.contains("--reference-steps 1: must be an integer from 2 to 10000"),
+        "{e}"
+    );
+    let e = one_line_error(&fem2d(&["budget", "case-a", "--criterion", "nan"]));
+    assert!(
+        e.contains("--criterion NaN: must be a finite number > 0"),
+        "{e}"
+    );
+    // The scene's [budget] table is checked like every scene key.
+    let e = one_line_error(&fem2d(&[
+        "budget",
+        "case-a",
+        "--set",
+        "budget.reference_steps=1",
+    ]));
+    assert!(
+        e.contains("budget.reference_steps = 1: must be an integer from 2 to 10000"),
+        "{e}"
+    );
+    let e = one_line_error(&fem2d(&["budget", "case-a", "--set", "budget.duration=-1"]));
+    assert!(e.contains("budget.duration = -1"), "{e}");
+    let e = one_line_error(&fem2d(&[
+        "budget",
+        "case-a",
+        "--set",
+        "budget.energies=[\"stvk\", \"stvk\"]",
+    ]));
+    assert!(
+        e.contains("budget.energies = \"stvk\": is listed twice"),
+        "{e}"
+    );
 }
 
 /// A reader that goes away before the output is printed (`fem2d budget ... | true`): no panic

@@ -49,7 +49,8 @@ fn report_has_every_section_and_picture() {
         "stability map",
         "Animations",
         "Frame budget: 90 Hz, 5 ms per frame",
-        "neo-hookean at 90 Hz within 5 ms per frame:",
+        "neo-hookean at 90 Hz within 5 ms per frame, ranked by the soft tissue's von Mises stress in the sustained phase",
+        "Frame budget windows, case-d",
         "Run metadata",
         "Wall time",
         "cores available",
@@ -64,9 +65,9 @@ fn report_has_every_section_and_picture() {
         images_in(&html),
         "an image is not embedded"
     );
-    // 5 figures + 2 curve charts + the stability map + 4 frame-budget charts (case A's three
-    // energies, case D's) + 4 animations.
-    assert_eq!(images_in(&html), 16);
+    // 5 figures + 2 curve charts + the stability map + 5 frame-budget charts (case A's three
+    // energies, case D's and its windows) + 4 animations.
+    assert_eq!(images_in(&html), 17);
     for file in [
         "figure-1-mesh-pipeline.png",
         "figure-2-case-a.png",
