@@ -334,8 +334,11 @@ fn frame_budgets(
                 file,
                 title: format!("Frame budget, {name}, {energy}"),
                 caption: format!(
-                    "{} against stepping time per frame on one thread, every stable setting of every framework ({} frames); the vertical line is the 5 ms budget. {sentence}",
-                    chart.y_label,
+                    "The error the frameworks are ranked by ({}) against stepping time per frame on one thread, every stable setting of every framework ({} frames); the vertical line is the 5 ms budget. {sentence}",
+                    run.budget.reference_of(energy).map_or_else(
+                        || run.budget.rank_by.name().to_owned(),
+                        |r| run.budget.rank_by.describe(&r.windows)
+                    ),
                     run.budget.frames
                 ),
             });

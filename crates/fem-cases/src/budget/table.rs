@@ -453,10 +453,18 @@ impl Budget {
                         points: vec![(self.budget_ms, lo), (self.budget_ms, hi)],
                     });
                 }
-                let what = self.reference_of(e).map_or_else(
-                    || self.rank_by.name().to_owned(),
-                    |r| self.rank_by.describe(&r.windows),
-                );
+                let phase = self
+                    .reference_of(e)
+                    .map_or(Phase::Whole, |r| self.rank_by.effective_phase(&r.windows));
+                let what = match self.rank_by {
+                    RankBy::Position => "position RMS [m]".to_owned(),
+                    RankBy::Stress | RankBy::StressImpact => {
+                        format!("tissue stress error, {} (L2)", phase.name())
+                    }
+                    RankBy::Pressure | RankBy::PressureImpact => {
+                        format!("peak pressure error, {}", phase.name())
+                    }
+                };
                 (
                     e,
                     LineChart {
