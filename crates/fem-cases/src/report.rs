@@ -320,7 +320,12 @@ fn frame_budgets(
                 .map_err(|e| SceneError::Io(e.to_string()))
         };
         let phases = run.phase_charts();
-        for (energy, chart) in run.budget.charts() {
+        for (energy, chart) in run
+            .budget
+            .charts()
+            .into_iter()
+            .filter(|(_, c)| c.series.iter().any(|s| !s.points.is_empty()))
+        {
             let file = format!("budget-{name}-{}.png", energy.name());
             write_atomic(&dir.join(&file), &png_of(&chart)?)?;
             let sentence = run

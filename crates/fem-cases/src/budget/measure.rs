@@ -78,6 +78,11 @@ pub struct Trajectory {
     pub kinetic_energy: Vec<f64>,
 }
 
+/// A number written as `null` when NaN (serde_json's way) and read back as NaN.
+pub(crate) fn nan_or_number<'de, D: serde::Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+    Ok(Option::<f64>::deserialize(d)?.unwrap_or(f64::NAN))
+}
+
 /// `null` for NaN, both ways (JSON has no NaN).
 mod nan_null {
     use serde::{Deserialize, Deserializer, Serialize, Serializer};
@@ -326,7 +331,9 @@ fn relative(a: f64, b: f64) -> Option<f64> {
 /// A run's errors against the reference in one window.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct WindowErrors {
-    /// RMS over all vertices and the window's frames of the distance to the reference, m.
+    /// RMS over all vertices and the window's frames of the distance to the reference, m (NaN
+    /// for a window without frames).
+    #[serde(deserialize_with = "nan_or_number")]
     pub position_rms: f64,
     /// Largest distance to the reference, m.
     pub position_max: f64,

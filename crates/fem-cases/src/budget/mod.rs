@@ -449,10 +449,14 @@ pub struct Trial {
     pub failure: Option<String>,
     /// Stopped because it cost more than [`BudgetSpec::cost_cap`] times the budget.
     pub over_cap: bool,
-    /// Stepping time per frame on one thread, ms.
+    /// Stepping time per frame on one thread, ms (NaN, `null` in JSON, for a rung stopped
+    /// over the cost cap).
+    #[serde(deserialize_with = "measure::nan_or_number")]
     pub ms_per_frame: f64,
     /// Solver iterations per frame actually used (sweeps, constraint, local-global, L-BFGS or
-    /// Newton iterations, summed over substeps; 0 for explicit).
+    /// Newton iterations, summed over substeps; 0 for explicit; NaN for a rung stopped over the
+    /// cost cap).
+    #[serde(deserialize_with = "measure::nan_or_number")]
     pub iterations_per_frame: f64,
     /// The largest final residual of a step over the run, in the solver's measure
     /// (`summary.json`'s `max_step_residual`); `None` for explicit.
@@ -981,6 +985,7 @@ impl BudgetRun {
         let json = serde_json::to_string_pretty(&self.budget)
             .map_err(|e| SceneError::Io(format!("budget.json: {e}")))?;
         put("budget.json", json.as_bytes())?;
+        // A chart with nothing to draw (no stable setting at all) is not written.
         for (prefix, energy, chart) in self
             .budget
             .charts()
@@ -991,6 +996,7 @@ impl BudgetRun {
                     .into_iter()
                     .map(|(e, c)| ("phases", e, c)),
             )
+            .filter(|(_, _, c)| c.series.iter().any(|s| !s.points.is_empty()))
         {
             let svg = chart.to_svg().map_err(render)?;
             put(&format!("{prefix}-{}.svg", energy.name()), svg.as_bytes())?;

@@ -64,15 +64,22 @@ fn ranking(b: &fem_cases::budget::Budget) -> Ranking {
         .collect()
 }
 
-/// Case A at 90 Hz: every framework runs (no contact), ranked by position error within the
-/// 5 ms budget (the default without regions or contact); the ranking is the same in a second
-/// run (the errors are deterministic and case A's 160 triangles cost far below the budget, so
-/// timing noise cannot move a setting across it).
+/// Case A at 90 Hz: every framework runs (no contact), ranked by position error (the default
+/// without regions or contact); the ranking is the same in a second run (the errors are
+/// deterministic, and with a budget every rung meets, timing noise cannot move a setting
+/// across it).
 #[test]
 fn case_a_ranking_is_the_same_in_two_runs() {
     let base = load_case_or_file("case-a", &[]).unwrap();
-    let first = budget(&base, &spec(), |_| {}).unwrap().budget;
-    let second = budget(&base, &spec(), |_| {}).unwrap().budget;
+    // A budget of one second a frame: the ladders' dearer rungs (VBD at 200 sweeps, its
+    // tolerance 1e-4, about 5 ms here) would otherwise sit on the 5 ms line, where a loaded
+    // machine's timing decides the side.
+    let spec = BudgetSpec {
+        budget_ms: 1000.0,
+        ..spec()
+    };
+    let first = budget(&base, &spec, |_| {}).unwrap().budget;
+    let second = budget(&base, &spec, |_| {}).unwrap().budget;
     assert_eq!(first.rank_by, RankBy::Position);
     assert_eq!(ranking(&first), ranking(&second));
     for s in &first.sentences {
@@ -327,4 +334,53 @@ fn case_d_poor_setting_ranks_last_and_the_ranking_repeats() {
     }
     let phase = b.rank_by.effective_phase(&b.references[0].windows);
     assert_eq!(phase, Phase::Sustained);
+}
+
+/// A budget no rung can meet: every rung is stopped once its stepping passes four times the
+/// budget over the run, so no row has a setting, the table says "none stable within 4 times
+/// the budget", and `budget.json` (with the stopped rungs' unknown cost, NaN, as `null`) reads
+/// back.
+#[test]
+fn rungs_over_the_cost_cap_are_stopped_and_reported() {
+    let base = load_case_or_file("case-a", &[]).unwrap();
+    let spec = BudgetSpec {
+        duration: Some(0.2),
+        budget_ms: 1e-4,
+        energies: vec![EnergyKind::Corotational],
+        frameworks: vec![Framework::Pbd, Framework::Pd],
+        ..BudgetSpec::default()
+    };
+    let run = budget(&base, &spec, |_| {}).unwrap();
+    let b = &run.budget;
+    assert!(!b.trials.is_empty());
+    // Each ladder stops at its first stopped rung: one fixed rung each, and PD's first
+    // tolerance rung.
+    assert!(
+        b.trials.iter().all(|t| t.over_cap && !t.stable),
+        "{:?}",
+        b.trials
+    );
+    assert_eq!(b.trials.len(), 3);
+    assert!(
+        b.rows
+            .iter()
+            .all(|r| r.best.is_none() && r.cheapest.is_none())
+    );
+    let md = b.to_markdown();
+    assert!(md.contains("none stable within 4 times the budget"), "{md}");
+    assert!(b.sentences[0].contains("no framework has a stable setting within the budget"));
+    let dir = std::env::temp_dir().join(format!("fem2d-budget-cap-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let written = run.write(&dir, false).unwrap();
+    assert!(!dir.join("trajectories.json").exists());
+    // Nothing stable: no Pareto chart to draw (the windows' chart of the reference stays).
+    assert!(
+        !written.iter().any(|f| f.starts_with("pareto-")),
+        "{written:?}"
+    );
+    let text = std::fs::read_to_string(dir.join("budget.json")).unwrap();
+    let back: fem_cases::budget::Budget = serde_json::from_str(&text).unwrap();
+    assert!(back.trials.iter().all(|t| t.ms_per_frame.is_nan()));
+    let _ = std::fs::remove_dir_all(&dir);
 }
