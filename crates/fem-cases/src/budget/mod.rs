@@ -483,17 +483,14 @@ pub struct Row {
     pub best: Option<Trial>,
 }
 
-/// An energy's reference: how it was run, its windows and its own estimated error.
+/// An energy's reference (run as [`Budget::reference`] says): its windows and its own
+/// estimated error.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Reference {
     /// The energy.
     pub energy: EnergyKind,
-    /// How it was run.
-    pub label: String,
     /// The windows found on it.
     pub windows: Windows,
-    /// Times of the windows' first frames, s: `[impact, sustained]` (`None` when absent).
-    pub window_times: [Option<f64>; 2],
     /// The reference at twice its step against it: its own error to first order.
     pub error: Errors,
 }
@@ -509,7 +506,8 @@ pub struct Budget {
     pub budget_ms: f64,
     /// Frames compared.
     pub frames: u64,
-    /// How the reference was run (`implicit Euler at dt = ..., Newton tolerance 1e-8`).
+    /// How the reference was run (`implicit Euler at dt = ... s (10 steps per frame), Newton
+    /// tolerance 1e-8`).
     pub reference: String,
     /// The ranking quantity.
     pub rank_by: RankBy,
@@ -733,8 +731,7 @@ pub fn budget(
         ];
         let label_of = |per: u64| {
             format!(
-                "{}, dt = {:e} s ({per} steps per frame), Newton tolerance {REFERENCE_TOLERANCE:e}",
-                SolverKind::Implicit,
+                "implicit Euler at dt = {:e} s ({per} steps per frame), Newton tolerance {REFERENCE_TOLERANCE:e}",
                 frame_dt / per as f64
             )
         };
@@ -773,18 +770,12 @@ pub fn budget(
         let (_, reference, fine_layout) = fine?;
         let (_, coarse, _) =
             coarse.map_err(|_| SceneError::Scene("the coarse reference run panicked".into()))??;
-        reference_label = format!(
-            "implicit Euler at dt = {:e} s ({per_frame} steps per frame), Newton tolerance {REFERENCE_TOLERANCE:e}",
-            frame_dt / per_frame as f64
-        );
+        reference_label = label_of(per_frame);
         lay = with_targets(base, fine_layout, frame_dt);
         let windows = Windows::find(&lay, &reference, spec.settle);
-        let time_of = |span: Option<measure::Span>| span.map(|s| s[0] as f64 * frame_dt);
         references.push(Reference {
             energy,
-            label: reference_label.clone(),
             windows,
-            window_times: [time_of(windows.impact), time_of(windows.sustained)],
             error: errors(&lay, &windows, &coarse, &reference),
         });
         let key = |t: &Trial| {
@@ -1008,7 +999,6 @@ impl BudgetRun {
         }
         let value = serde_json::json!({
             "layout": self.layout,
-            "settle": self.budget.references.first().map(|r| r.windows.settle),
             "windows": self
                 .budget
                 .references
