@@ -9,6 +9,10 @@
 //! - the linearisation at `F = I` equals linear elasticity with the same Lamé parameters;
 //! - the projected `dP/dF` is symmetric positive semi-definite, equals `dP/dF` where that is
 //!   already PSD, and is positive definite at rest;
+//! - the closed-form projection each energy overrides `dpk1_projected` with equals the general
+//!   one (an iterative eigendecomposition, `project_psd`) to `1e-10` relative to `|dP/dF|`, at
+//!   random, inverted (where defined), near-isotropic (`s_1 = s_2`) and near-flip
+//!   (`s_1 = -s_2`) deformation gradients, and the samples do exercise the clamping;
 //! - the batched `pk1_lanes` equals `pk1` lane by lane, bit for bit;
 //! - the corner block `pk1_corner_block` returns `pk1` bit for bit and the contraction of
 //!   `dP/dF` with the corner gradient to round-off (`1e-12` relative to its largest entry),
@@ -25,7 +29,8 @@ mod common;
 
 use common::Rng;
 use fem_core::energy::{
-    Corotational, Energy, Linear, NeoHookean, StableNeoHookean, Stvk, contract_corner,
+    Corotational, Energy, Linear, NeoHookean, StableNeoHookean, Stvk, contract_corner, project_psd,
+    svd_rotation_variant,
 };
 use fem_core::fd::{FdOptions, check_gradient, check_jacobian};
 use fem_core::material::{Material, PlaneModel};
@@ -192,6 +197,51 @@ fn check_projected_dpk1_is_psd<E: Energy>(e: &E, fs: &[Mat2]) {
     );
 }
 
+/// The closed-form projection against the general one (see the module docs). Returns how many
+/// samples had a negative eigenvalue clamped.
+fn check_closed_form_projection<E: Energy>(e: &E, fs: &[Mat2], inverted: bool) -> usize {
+    let mut rng = Rng::new(11);
+    let mut fs = fs.to_vec();
+    for k in 0..SAMPLES {
+        let s = rng.uniform(0.3, 1.8);
+        let q = rotation(rng.uniform(0.0, 6.0));
+        // Equal singular values, and equal up to a relative 1e-9 (the twist eigenvalue's
+        // `(psi_1 - psi_2) / (s_1 - s_2)` is a 0/0 there).
+        let t = if k % 2 == 0 { 1.0 } else { 1.0 + 1e-9 };
+        fs.push(q * Mat2::new(s, 0.0, 0.0, s * t) * rotation(rng.uniform(0.0, 6.0)));
+        if inverted {
+            // s_1 = -s_2: the flip eigenvalue's `(psi_1 + psi_2) / (s_1 + s_2)` is a 0/0.
+            fs.push(q * Mat2::new(s, 0.0, 0.0, -s * t) * rotation(rng.uniform(0.0, 6.0)));
+        }
+    }
+    let mut clamped = 0;
+    for f in &fs {
+        let (u, sv, v) = svd_rotation_variant(f);
+        assert!(
+            (u * Mat2::from_diagonal(&sv) * v.transpose() - f).norm() <= 1e-14 * f.norm(),
+            "svd of {f:?}"
+        );
+        assert!((u.determinant() - 1.0).abs() < 1e-14 && (v.determinant() - 1.0).abs() < 1e-14);
+        let h = e.dpk1(f);
+        if !h.iter().all(|x| x.is_finite()) {
+            continue;
+        }
+        let general = project_psd(&h);
+        let closed = e.dpk1_projected(f);
+        let err = (closed - general).norm() / h.norm().max(Real::MIN_POSITIVE);
+        assert!(
+            err <= 1e-10,
+            "{}: closed-form projection differs from the general one by {err:e} relative at F = {f:?}:\n{closed}\nvs\n{general}",
+            e.name()
+        );
+        let sym = (h + h.transpose()) * 0.5;
+        if SymmetricEigen::new(sym).eigenvalues.min() < 0.0 {
+            clamped += 1;
+        }
+    }
+    clamped
+}
+
 /// The first Piola-Kirchhoff stress is the gradient of psi, so `dP/dF` must be symmetric.
 fn check_dpk1_is_symmetric<E: Energy>(e: &E, fs: &[Mat2]) {
     for f in fs {
@@ -311,6 +361,17 @@ macro_rules! energy_battery {
             #[test]
             fn linearisation_is_linear_elasticity() {
                 check_linearisation_is_linear_elasticity(&energy());
+            }
+
+            #[test]
+            fn closed_form_projection_equals_general() {
+                let clamped = check_closed_form_projection(&energy(), &samples(9, $inv), $inv);
+                // Every energy but the small-strain one (a constant PSD tangent) is
+                // indefinite somewhere in the samples, so the clamp is exercised.
+                assert!(
+                    clamped > 0 || energy().name() == "linear",
+                    "no sample needed a clamp"
+                );
             }
 
             #[test]

@@ -110,4 +110,9 @@ impl Energy for Corotational {
                 + dr * (self.lambda * t)
         })
     }
+
+    /// Closed form ([`super::project_psd_isotropic`]): the energy is isotropic.
+    fn dpk1_projected(&self, f: &Mat2) -> Mat4 {
+        super::project_psd_isotropic(f, &self.dpk1(f))
+    }
 }

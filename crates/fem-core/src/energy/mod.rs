@@ -61,7 +61,8 @@ pub trait Energy: Send + Sync + Clone + fmt::Debug {
 
     /// `dP/dF` projected onto the positive semi-definite cone (negative eigenvalues clamped to
     /// zero), for Newton solvers that need a descent direction. The default does a symmetric
-    /// eigendecomposition of [`Energy::dpk1`]; energies may override it with a closed form.
+    /// eigendecomposition of [`Energy::dpk1`] ([`project_psd`]); every energy here overrides
+    /// it with a closed form (the isotropic ones with [`project_psd_isotropic`]).
     fn dpk1_projected(&self, f: &Mat2) -> Mat4 {
         project_psd(&self.dpk1(f))
     }
@@ -135,7 +136,107 @@ pub fn contract_corner(d: &Mat4, g: &Vec2) -> Mat2 {
     b
 }
 
-/// Clamp the eigenvalues of the symmetric part of `m` at zero and rebuild it.
+/// A rotation-variant singular value decomposition `F = U diag(s) V^T` of a 2x2 matrix: `U`
+/// and `V` are proper rotations, and `s[1]` is negative when `det F < 0` (the reflection goes
+/// into the smaller singular value, as inversion-aware elasticity wants). Closed form: the
+/// polar rotation `R` ([`crate::polar::Polar2`]), then the symmetric eigendecomposition
+/// `R^T F = W diag(s) W^T` with `W` a rotation, so `U = R W` and `V = W`. Only square roots; no
+/// iteration and no trigonometry (bit-identical on every target).
+pub fn svd_rotation_variant(f: &Mat2) -> (Mat2, Vec2, Mat2) {
+    let r = crate::polar::Polar2::new(f).rotation();
+    let s = r.transpose() * f;
+    // `R^T F` is symmetric analytically; average its off-diagonal round-off away.
+    let (a, b, d) = (s[(0, 0)], 0.5 * (s[(0, 1)] + s[(1, 0)]), s[(1, 1)]);
+    let mean = 0.5 * (a + d);
+    let half = 0.5 * (a - d);
+    // `sqrt`, not `hypot`: IEEE-exact on every target (libm's `hypot` is not).
+    let radius = (half * half + b * b).sqrt();
+    // The eigenvector of the larger eigenvalue `mean + radius`, from whichever row of
+    // `S - lambda I` is better conditioned.
+    let v = if radius == 0.0 {
+        Vec2::new(1.0, 0.0)
+    } else if half >= 0.0 {
+        Vec2::new(half + radius, b)
+    } else {
+        Vec2::new(b, radius - half)
+    };
+    let v = v / v.norm();
+    let w = Mat2::new(v.x, -v.y, v.y, v.x);
+    (r * w, Vec2::new(mean + radius, mean - radius), w)
+}
+
+/// The PSD projection of a symmetric 2x2 matrix `[[p, q], [q, r]]` (its negative eigenvalue
+/// clamped to zero), in closed form: `A` itself when both eigenvalues are non-negative, zero
+/// when both are non-positive, else `l_max (A - l_min I) / (l_max - l_min)`.
+#[inline]
+fn project_psd2(p: Real, q: Real, r: Real) -> (Real, Real, Real) {
+    let mean = 0.5 * (p + r);
+    let half = 0.5 * (p - r);
+    let radius = (half * half + q * q).sqrt();
+    let (hi, lo) = (mean + radius, mean - radius);
+    if lo >= 0.0 {
+        (p, q, r)
+    } else if hi <= 0.0 {
+        (0.0, 0.0, 0.0)
+    } else {
+        let c = hi / (hi - lo);
+        (c * (p - lo), c * q, c * (r - lo))
+    }
+}
+
+/// The PSD projection of `dP/dF` of an **isotropic** energy in closed form (Smith, de Goes and
+/// Kim, "Analytic eigensystems for isotropic distortion energies", ACM TOG 2019, in 2D).
+///
+/// With the rotation-variant SVD `F = U diag(s) V^T` ([`svd_rotation_variant`]), the four
+/// matrices `U e_a e_b^T V^T` form an orthonormal basis of 2x2 matrices in which the Hessian of
+/// any isotropic `psi` is block diagonal: the two **scaling** directions (`a = b`) couple through
+/// the 2x2 Hessian of `psi` in the singular values, and the **twist** and **flip** directions
+/// (`a != b`) form a second 2x2 block whose eigenvalues are
+/// `(psi_1 - psi_2) / (s_1 - s_2)` and `(psi_1 + psi_2) / (s_1 + s_2)`. So the eigenvectors are
+/// known in closed form: rotate `dP/dF` (`d`, the energy's own exact tangent) into that basis,
+/// clamp the two 2x2 blocks in closed form ([`project_psd2`]), and rotate back. It equals
+/// [`project_psd`] of the same matrix to round-off (a test checks every isotropic energy, over
+/// random and inverted `F`, to `1e-10` relative). When `d` is already PSD (a 4x4 Cholesky
+/// proves most such tangents positive definite first, for a few dozen flops), its symmetric
+/// part is returned as it is.
+pub fn project_psd_isotropic(f: &Mat2, d: &Mat4) -> Mat4 {
+    let sym = (d + d.transpose()) * 0.5;
+    // Most elements are positive definite: a 4x4 Cholesky (a few dozen flops, cheaper than the
+    // SVD and the two rotations) proves it, and the answer is then `sym` either way.
+    if nalgebra::Cholesky::new(sym).is_some() {
+        return sym;
+    }
+    let (u, _, v) = svd_rotation_variant(f);
+    // Columns: vec(u_a v_b^T) for (a, b) = (0, 0), (1, 1), (0, 1), (1, 0).
+    let mut q = Mat4::zeros();
+    for (k, (a, b)) in [(0, 0), (1, 1), (0, 1), (1, 0)].into_iter().enumerate() {
+        for j in 0..2 {
+            for i in 0..2 {
+                q[(vec_index(i, j), k)] = u[(i, a)] * v[(j, b)];
+            }
+        }
+    }
+    let rotated = q.transpose() * sym * q;
+    let scaling = project_psd2(rotated[(0, 0)], rotated[(0, 1)], rotated[(1, 1)]);
+    let pair = project_psd2(rotated[(2, 2)], rotated[(2, 3)], rotated[(3, 3)]);
+    if scaling == (rotated[(0, 0)], rotated[(0, 1)], rotated[(1, 1)])
+        && pair == (rotated[(2, 2)], rotated[(2, 3)], rotated[(3, 3)])
+    {
+        return sym;
+    }
+    let mut clamped = Mat4::zeros();
+    for (o, (p, x, r)) in [(0, scaling), (2, pair)] {
+        clamped[(o, o)] = p;
+        clamped[(o, o + 1)] = x;
+        clamped[(o + 1, o)] = x;
+        clamped[(o + 1, o + 1)] = r;
+    }
+    q * clamped * q.transpose()
+}
+
+/// Clamp the eigenvalues of the symmetric part of `m` at zero and rebuild it: the general route,
+/// by an iterative symmetric eigendecomposition, for any tangent ([`project_psd_isotropic`] is
+/// the closed form for isotropic energies).
 pub fn project_psd(m: &Mat4) -> Mat4 {
     let sym = (m + m.transpose()) * 0.5;
     // Most elements are positive definite: a 4x4 Cholesky (a few dozen flops) proves it and

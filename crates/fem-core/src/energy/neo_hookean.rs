@@ -142,4 +142,9 @@ impl Energy for NeoHookean {
             + linear_map_matrix(|df| f_inv_t * df.transpose() * f_inv_t) * c
             + outer(&f_inv_t, &f_inv_t) * self.lambda
     }
+
+    /// Closed form ([`super::project_psd_isotropic`]): the energy is isotropic.
+    fn dpk1_projected(&self, f: &Mat2) -> Mat4 {
+        super::project_psd_isotropic(f, &self.dpk1(f))
+    }
 }

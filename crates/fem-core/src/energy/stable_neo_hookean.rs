@@ -116,4 +116,9 @@ impl Energy for StableNeoHookean {
             + outer(&cof, &cof) * self.lambda
             + cof_map * (self.lambda * d)
     }
+
+    /// Closed form ([`super::project_psd_isotropic`]): the energy is isotropic.
+    fn dpk1_projected(&self, f: &Mat2) -> Mat4 {
+        super::project_psd_isotropic(f, &self.dpk1(f))
+    }
 }

@@ -100,4 +100,9 @@ impl Energy for Stvk {
             df * s + f * self.pk2(&de)
         })
     }
+
+    /// Closed form ([`super::project_psd_isotropic`]): the energy is isotropic.
+    fn dpk1_projected(&self, f: &Mat2) -> Mat4 {
+        super::project_psd_isotropic(f, &self.dpk1(f))
+    }
 }
