@@ -133,6 +133,10 @@ pub(crate) struct RigidUnknowns {
     of: Vec<u32>,
     /// The stiffness entries `(entry, row DOF, column DOF)` with a slaved row or column.
     entries: Vec<(u32, u32, u32)>,
+    /// For each of `entries`, the slots in the reduced Hessian's values of its up to four
+    /// products (row unknown `k`, column unknown `l`) at `2 k + l` (`u32::MAX`: none, or in the
+    /// upper triangle): found once, when the pattern is built.
+    entry_slots: Vec<[u32; 4]>,
     /// Free index of the first body's first unknown.
     first: usize,
     /// The current poses `(p_x, p_y, theta)`.
@@ -168,6 +172,7 @@ impl RigidUnknowns {
             bodies: free,
             of,
             entries: Vec::new(),
+            entry_slots: Vec::new(),
             first: 0,
             q: vec![[0.0; 3]; n],
             target: vec![[0.0; 3]; n],
@@ -280,6 +285,11 @@ pub(crate) struct NewtonSolver {
     map: Vec<u32>,
     /// Slot of each free DOF's diagonal entry in `values`.
     diag: Vec<usize>,
+    /// The factorisation's order: free unknown `i` is row and column `position[i]` of the
+    /// matrix as stored (`col_ptr`, `row_idx`, `values`, `map`, `diag`: all in that order).
+    position: Vec<usize>,
+    /// The right-hand side in the factorisation's order.
+    permuted: Vec<Real>,
     symbolic: SymbolicCholesky<usize>,
     l_values: Vec<Real>,
     mem: MemBuffer,
@@ -464,21 +474,39 @@ impl NewtonSolver {
         }
         let n_free = n_soft + n_extra;
         let values = vec![0.0; row_idx.len()];
-        let pattern =
-            SymbolicSparseColMatRef::new_checked(n_free, n_free, &col_ptr, None, &row_idx);
-        let symbolic = factorize_symbolic_cholesky(
-            pattern,
-            Side::Lower,
-            SymmetricOrdering::Amd,
-            CholeskySymbolicParams::default(),
-        )
-        .map_err(|e| {
-            SolverError::invalid(
-                format!("{}.factorisation", self_prefix),
-                format!("{e:?}"),
-                "symbolic analysis failed",
-            )
-        })?;
+        let analyse = |col_ptr: &[usize], row_idx: &[usize], side, ordering| {
+            let pattern =
+                SymbolicSparseColMatRef::new_checked(n_free, n_free, col_ptr, None, row_idx);
+            factorize_symbolic_cholesky(pattern, side, ordering, CholeskySymbolicParams::default())
+                .map_err(|e| {
+                    SolverError::invalid(
+                        format!("{}.factorisation", self_prefix),
+                        format!("{e:?}"),
+                        "symbolic analysis failed",
+                    )
+                })
+        };
+        // The fill-reducing ordering (AMD), applied once to the pattern itself, which is
+        // stored as the upper triangle (what faer's simplicial factorisation reads): the matrix
+        // is assembled directly in that order and layout, so no factorisation has to permute
+        // or transpose it (about a fifth of a numeric factorisation at case D's size).
+        let amd = analyse(&col_ptr, &row_idx, Side::Lower, SymmetricOrdering::Amd)?;
+        let position: Vec<usize> = match amd.perm() {
+            Some(perm) => {
+                let (_, inverse) = perm.arrays();
+                inverse.to_vec()
+            }
+            None => (0..n_free).collect(),
+        };
+        let (col_ptr, row_idx, moved) = permute_to_upper(&col_ptr, &row_idx, &position);
+        for slot in map.iter_mut().filter(|s| **s != u32::MAX) {
+            *slot = moved[*slot as usize] as u32;
+        }
+        for slot in &mut diag {
+            *slot = moved[*slot];
+        }
+        let symbolic = analyse(&col_ptr, &row_idx, Side::Upper, SymmetricOrdering::Identity)?;
+        debug_assert_eq!(symbolic.len_val(), amd.len_val());
         let req = StackReq::any_of(&[
             symbolic.factorize_numeric_llt_scratch::<Real>(Par::Seq, Default::default()),
             symbolic.solve_in_place_scratch::<Real>(1, Par::Seq),
@@ -491,13 +519,15 @@ impl NewtonSolver {
             )
         })?;
         rigid.first = n_soft + n_contact;
-        Ok(NewtonSolver {
+        let mut solver = NewtonSolver {
             n_soft,
             trial_q: Vec::new(),
             rigid,
             prefix,
             l_values: vec![0.0; symbolic.len_val()],
             symbolic,
+            permuted: vec![0.0; n_free],
+            position,
             mem,
             free,
             n_free,
@@ -513,7 +543,41 @@ impl NewtonSolver {
             gradient: vec![0.0; n_free],
             direction: vec![0.0; n_free],
             trial: vec![Vec2::zeros(); mesh.n_vertices()],
-        })
+        };
+        let slots: Vec<[u32; 4]> = (solver.rigid.entries.iter())
+            .map(|&(_, r, c)| {
+                let (a, na) = solver.reduced(r as usize);
+                let (b, nb) = solver.reduced(c as usize);
+                let mut out = [u32::MAX; 4];
+                for k in 0..na {
+                    for l in 0..nb {
+                        if a[k] >= b[l] {
+                            let slot = solver
+                                .slot(a[k], b[l])
+                                .expect("a body's entry outside the pattern");
+                            out[2 * k + l] = slot as u32;
+                        }
+                    }
+                }
+                out
+            })
+            .collect();
+        solver.rigid.entry_slots = slots;
+        Ok(solver)
+    }
+
+    /// The reduced unknowns one full DOF `r` moves: none (held), its own free index, or a
+    /// body's translation along its axis and the body's angle (in that order).
+    fn reduced(&self, r: usize) -> ([usize; 2], usize) {
+        let b = self.rigid.of[r / 2];
+        if b == u32::MAX {
+            return match self.free[r] {
+                u32::MAX => ([0; 2], 0),
+                j => ([j as usize, 0], 1),
+            };
+        }
+        let base = self.rigid.first + 3 * b as usize;
+        ([base + r % 2, base + 2], 2)
     }
 
     /// The free rigid bodies' unknowns (start a solve with [`RigidUnknowns::begin`], read
@@ -542,7 +606,8 @@ impl NewtonSolver {
     /// The slot of free entry `(i, j)` (either order) in `values`.
     #[inline]
     fn slot(&self, i: usize, j: usize) -> Option<usize> {
-        let (r, c) = if i >= j { (i, j) } else { (j, i) };
+        let (i, j) = (self.position[i], self.position[j]);
+        let (r, c) = (i.min(j), i.max(j));
         let rows = &self.row_idx[self.col_ptr[c]..self.col_ptr[c + 1]];
         rows.binary_search(&r).ok().map(|k| self.col_ptr[c] + k)
     }
@@ -730,7 +795,7 @@ impl NewtonSolver {
                 .factorize_numeric_llt::<Real>(
                     &mut self.l_values,
                     a,
-                    Side::Lower,
+                    Side::Upper,
                     LltRegularization {
                         dynamic_regularization_delta: 0.0,
                         dynamic_regularization_epsilon: 0.0,
@@ -765,42 +830,29 @@ impl NewtonSolver {
         rq: &[[Real; 3]],
     ) {
         let first = rigid.first;
-        // The reduced coordinates of one full DOF: up to three (index, coefficient) pairs.
-        let expand = |r: usize, out: &mut [(usize, Real); 3]| -> usize {
+        // The coefficients of one full DOF's reduced unknowns (see `reduced`): 1 for a soft
+        // DOF; 1 and `d x_v / d angle = perp(x_v - p) = (-r_y, r_x)` for a slaved one.
+        let coefficients = |r: usize| -> [Real; 2] {
             let v = r / 2;
-            let d = r % 2;
             let b = rigid.of[v];
             if b == u32::MAX {
-                let j = self.free[r];
-                if j == u32::MAX {
-                    return 0;
-                }
-                out[0] = (j as usize, 1.0);
-                return 1;
+                return [1.0, 0.0];
             }
-            let (b, q) = (b as usize, &rq[b as usize]);
+            let q = &rq[b as usize];
             let rel = x[v] - Vec2::new(q[0], q[1]);
-            let base = first + 3 * b;
-            out[0] = (base + d, 1.0);
-            // d x_v / d angle = perp(x_v - p) = (-r_y, r_x).
-            out[1] = (base + 2, if d == 0 { -rel.y } else { rel.x });
-            2
+            [1.0, if r.is_multiple_of(2) { -rel.y } else { rel.x }]
         };
-        let (mut a, mut c) = ([(0usize, 0.0); 3], [(0usize, 0.0); 3]);
         let mut values = std::mem::take(&mut self.values);
-        for &(e, r, col) in &rigid.entries {
+        for (&(e, r, col), slots) in rigid.entries.iter().zip(&rigid.entry_slots) {
             let k = self.stiffness.matrix.values[e as usize];
             if k == 0.0 {
                 continue;
             }
-            let na = expand(r as usize, &mut a);
-            let nc = expand(col as usize, &mut c);
-            for &(i, ai) in &a[..na] {
-                for &(j, cj) in &c[..nc] {
-                    if i >= j {
-                        let slot = self.slot(i, j).expect("a body's entry outside the pattern");
-                        values[slot] += ai * k * cj;
-                    }
+            let a = coefficients(r as usize);
+            let c = coefficients(col as usize);
+            for (n, &slot) in slots.iter().enumerate() {
+                if slot != u32::MAX {
+                    values[slot as usize] += a[n / 2] * k * c[n % 2];
                 }
             }
         }
@@ -825,12 +877,15 @@ impl NewtonSolver {
 
     /// Solve `H d = -g` with the last factorisation into `self.direction`.
     fn solve(&mut self) {
-        for (d, g) in self.direction.iter_mut().zip(&self.gradient) {
-            *d = -g;
+        for (&k, g) in self.position.iter().zip(&self.gradient) {
+            self.permuted[k] = -g;
         }
         let llt = LltRef::<'_, usize, Real>::new(&self.symbolic, &self.l_values);
-        let rhs = MatMut::from_column_major_slice_mut(&mut self.direction, self.n_free, 1);
+        let rhs = MatMut::from_column_major_slice_mut(&mut self.permuted, self.n_free, 1);
         llt.solve_in_place_with_conj(Conj::No, rhs, Par::Seq, MemStack::new(&mut self.mem));
+        for (&k, d) in self.position.iter().zip(&mut self.direction) {
+            *d = self.permuted[k];
+        }
     }
 
     /// Minimise the potential from `x` (kinematic vertices already placed), in place. When the
@@ -1072,6 +1127,43 @@ impl NewtonSolver {
         report.inverted = inverted;
         Ok(report)
     }
+}
+
+/// The lower triangle `(col_ptr, row_idx)` (compressed columns, rows sorted) of a symmetric
+/// pattern with its rows and columns renumbered (`position[i]`: the new index of `i`), as the
+/// upper triangle (rows sorted), and for each old entry its new slot.
+fn permute_to_upper(
+    col_ptr: &[usize],
+    row_idx: &[usize],
+    position: &[usize],
+) -> (Vec<usize>, Vec<usize>, Vec<usize>) {
+    let n = col_ptr.len() - 1;
+    // Each entry's new (row, column, old slot), sorted by column then row.
+    let mut entries: Vec<(usize, usize, usize)> = Vec::with_capacity(row_idx.len());
+    for j in 0..n {
+        for (k, &i) in row_idx
+            .iter()
+            .enumerate()
+            .take(col_ptr[j + 1])
+            .skip(col_ptr[j])
+        {
+            let (a, b) = (position[i], position[j]);
+            entries.push((a.min(b), a.max(b), k));
+        }
+    }
+    entries.sort_unstable_by_key(|&(r, c, _)| (c, r));
+    let mut new_ptr = vec![0usize; n + 1];
+    let mut new_rows = Vec::with_capacity(entries.len());
+    let mut moved = vec![0usize; entries.len()];
+    for (slot, &(r, c, old)) in entries.iter().enumerate() {
+        new_ptr[c + 1] += 1;
+        new_rows.push(r);
+        moved[old] = slot;
+    }
+    for j in 0..n {
+        new_ptr[j + 1] += new_ptr[j];
+    }
+    (new_ptr, new_rows, moved)
 }
 
 /// The force scale a relative residual tolerance is measured against, N: the largest of the
