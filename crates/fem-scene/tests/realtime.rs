@@ -51,7 +51,15 @@ fn tip_curves_approach_implicit_euler_as_iterations_grow() {
     let case = "case-a";
     for (solver, energy, counts) in solvers {
         let energy_key = format!("energy={energy}");
-        let reference = tip(case, &["solver.kind=implicit", &energy_key]);
+        // Converged steps: Newton's tolerance alone, no real-time velocity tolerance.
+        let reference = tip(
+            case,
+            &[
+                "solver.kind=implicit",
+                "solver.velocity_tolerance=0",
+                &energy_key,
+            ],
+        );
         let mut d = Vec::new();
         for n in counts {
             let kind = format!("solver.kind={solver}");

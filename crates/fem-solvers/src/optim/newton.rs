@@ -894,11 +894,17 @@ impl NewtonSolver {
     /// friction and moving obstacles join the potential (its poses `q` are unknowns too, and
     /// `x` must be free of contact: every candidate pair apart), and every line search starts
     /// at the largest step the CCD allows.
+    ///
+    /// With `step_tolerance > 0` (m) a solve also stops after a full Newton step (the line
+    /// search accepted `alpha = 1`) that moved no vertex by more than `step_tolerance`: Newton
+    /// converges quadratically there, so the iterate is within about that distance of the
+    /// minimiser (implicit Euler's `velocity_tolerance` times the step).
     pub(crate) fn minimise<E: Energy>(
         &mut self,
         p: &Potential<'_, E>,
         x: &mut [Vec2],
         params: &NewtonParams,
+        step_tolerance: Real,
         fallback: Option<Restart<'_>>,
         mut contact: Option<&mut BarrierContact>,
     ) -> Result<NewtonReport, SolverError> {
@@ -966,7 +972,16 @@ impl NewtonSolver {
             contact.as_deref().map(|c| (c, &c.q[..])),
             (&rigid, &rq),
         );
-        let target = params.tolerance * force_scale(residual, p.load, self.elastic_force);
+        // The force scale takes the first residual of the body's own unknowns (soft vertices
+        // and rigid regions): an obstacle's (a kinematic obstacle's tether pulling it along its
+        // schedule, about 1e6 times the body's stiffness) would make any relative tolerance
+        // meaningless for the body.
+        let own: Real = (self.gradient[..self.n_soft].iter())
+            .chain(&self.gradient[rigid.first..])
+            .map(|g| g * g)
+            .sum::<Real>()
+            .sqrt();
+        let target = params.tolerance * force_scale(own, p.load, self.elastic_force);
         report.residuals.push(residual);
         report.potentials.push(phi);
         // Positions are absolute coordinates, so forces carry a round-off floor of about
@@ -983,6 +998,7 @@ impl NewtonSolver {
         // tolerance relative to the load).
         let residual_floor = 1e-13 * psi_scale / size;
         let mut at_floor = residual <= residual_floor;
+        let mut settled = false;
         while residual > target && !at_floor && report.iterations < params.max_iterations {
             self.factorise(
                 p,
@@ -1092,6 +1108,13 @@ impl NewtonSolver {
                 at_floor = residual <= residual_floor;
                 break;
             }
+            if step_tolerance > 0.0 && alpha == 1.0 {
+                let moved = (self.trial.iter().zip(x.iter()))
+                    .map(|(t, x)| (t - x).norm_squared())
+                    .fold(0.0, Real::max)
+                    .sqrt();
+                settled = moved <= step_tolerance;
+            }
             x.copy_from_slice(&self.trial);
             rq.clone_from(&rtrial);
             if let Some(c) = contact.as_deref_mut() {
@@ -1109,6 +1132,9 @@ impl NewtonSolver {
             report.residuals.push(residual);
             report.potentials.push(phi);
             at_floor |= residual <= residual_floor;
+            if settled {
+                break;
+            }
         }
         self.trial_q = trial_q;
         self.rigid = RigidUnknowns {
@@ -1116,7 +1142,7 @@ impl NewtonSolver {
             trial: rtrial,
             ..rigid
         };
-        report.converged = residual <= target || at_floor;
+        report.converged = residual <= target || at_floor || settled;
         let (mut min_det, mut inverted) = (Real::INFINITY, 0);
         for (t, el) in p.mesh.elements().iter().enumerate() {
             let j = el.deformation_gradient(p.mesh.gather(t, x)).determinant();

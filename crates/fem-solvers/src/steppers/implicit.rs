@@ -42,6 +42,9 @@ use crate::steppers::commit::{Kinematic, StepEnd};
 use crate::steppers::registry::{Capabilities, Clock, Solver};
 use crate::steppers::report::StepReport;
 
+/// The default of [`ImplicitParams::velocity_tolerance`], m/s.
+pub const VELOCITY_TOLERANCE: Real = 1e-3;
+
 /// Parameters of [`ImplicitStepper`] (scene keys `dt`, `damping`, `tolerance`,
 /// `max_iterations`, `max_halvings`).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -55,6 +58,13 @@ pub struct ImplicitParams {
     pub dt: Real,
     /// Velocity damping rate `c`, 1/s (`v <- v exp(-c dt)`; finite, >= 0). Default 0.
     pub damping: Real,
+    /// Newton also stops after a full step that moved no vertex by more than
+    /// `velocity_tolerance * dt`, m/s (finite, >= 0; 0: only the residual `tolerance` stops
+    /// it). Newton converges quadratically there, so each vertex's position is within about
+    /// that distance of the step's exact minimiser, its velocity within about
+    /// `velocity_tolerance` of the converged step's: the real-time stopping rule
+    /// (docs/implicit.md). Default `VELOCITY_TOLERANCE`.
+    pub velocity_tolerance: Real,
     /// Newton settings (serde: flattened into this table).
     #[cfg_attr(feature = "serde", serde(flatten))]
     pub newton: NewtonParams,
@@ -65,6 +75,7 @@ impl Default for ImplicitParams {
         ImplicitParams {
             dt: 1e-3,
             damping: 0.0,
+            velocity_tolerance: VELOCITY_TOLERANCE,
             newton: NewtonParams::default(),
         }
     }
@@ -80,6 +91,10 @@ impl ImplicitParams {
     pub fn validate_as(&self, prefix: &str) -> Result<(), SolverError> {
         check_positive(&format!("{prefix}.dt"), self.dt)?;
         check_non_negative(&format!("{prefix}.damping"), self.damping)?;
+        check_non_negative(
+            &format!("{prefix}.velocity_tolerance"),
+            self.velocity_tolerance,
+        )?;
         self.newton.validate_as(prefix)
     }
 }
@@ -281,6 +296,7 @@ impl Stepper for ImplicitStepper {
             &potential,
             &mut self.x_new,
             &self.params.newton,
+            self.params.velocity_tolerance * h,
             Some(&current),
             self.contact.as_mut(),
         )?;

@@ -397,6 +397,7 @@ impl Stepper for StaticStepper {
                 &potential,
                 &mut self.x_new,
                 &self.params.newton,
+                0.0,
                 None,
                 self.contact.as_mut(),
             );

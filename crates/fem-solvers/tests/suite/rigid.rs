@@ -133,7 +133,9 @@ fn bar_at_rest(kind: SolverKind, model: &Model<AnyEnergy>) -> State {
     let damping = 20.0;
     match &mut p {
         SolverParams::Explicit(x) => x.damping = damping,
-        SolverParams::Implicit(x) => x.damping = damping,
+        // Converged steps (Newton's tolerance alone, no velocity tolerance): the analytic
+        // strain is the converged equilibrium's.
+        SolverParams::Implicit(x) => (x.damping, x.velocity_tolerance) = (damping, 0.0),
         SolverParams::Static(_) => {}
         SolverParams::Pbd(x) => (x.iterations, x.damping) = (50, damping),
         SolverParams::Xpbd(x) => (x.substeps, x.iterations, x.damping) = (10, 20, damping),

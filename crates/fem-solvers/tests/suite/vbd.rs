@@ -33,6 +33,8 @@ pub fn implicit_step(model: &Model<AnyEnergy>, state: &State, dt: Real) -> State
             max_iterations: 200,
             ..NewtonParams::default()
         },
+        // Newton's tolerance alone stops it (no velocity tolerance).
+        velocity_tolerance: 0.0,
         ..ImplicitParams::default()
     };
     let mut s = state.clone();
