@@ -232,15 +232,27 @@ impl Framework {
                 l.extend(tolerances(Vec::new(), &[1e-2, 1e-4, 1e-6]));
                 l
             }
-            Framework::Implicit => [1e-2, 1e-4, 1e-6, 1e-8]
+            // Newton's real-time stopping rule (a full step below the velocity tolerance times
+            // the step, Newton's tolerance 1e-8 behind it), then its residual tolerance alone.
+            Framework::Implicit => [1e-2, 1e-3, 1e-4]
                 .iter()
-                .map(|&t| Setting {
-                    tolerance: Some(t),
-                    ..fixed(
-                        format!("tolerance {t:e}"),
-                        vec![("tolerance".into(), toml::Value::Float(t))],
+                .map(|&v| {
+                    fixed(
+                        format!("velocity {v:e} m/s"),
+                        vec![("velocity_tolerance".into(), toml::Value::Float(v))],
                     )
                 })
+                .chain([1e-2, 1e-4, 1e-6, 1e-8].iter().map(|&t| Setting {
+                    tolerance: Some(t),
+                    group: 1,
+                    ..fixed(
+                        format!("tolerance {t:e}"),
+                        vec![
+                            ("tolerance".into(), toml::Value::Float(t)),
+                            ("velocity_tolerance".into(), toml::Value::Float(0.0)),
+                        ],
+                    )
+                }))
                 .collect(),
         }
     }
@@ -728,6 +740,8 @@ pub fn budget(
                 toml::Value::Float(REFERENCE_TOLERANCE),
             ),
             ("max_iterations".to_owned(), toml::Value::Integer(200)),
+            // Newton's tolerance alone stops it.
+            ("velocity_tolerance".to_owned(), toml::Value::Float(0.0)),
         ];
         let label_of = |per: u64| {
             format!(
