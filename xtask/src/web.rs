@@ -191,6 +191,17 @@ fn check_against_native(site: &Path) -> Result<(), String> {
             format!("solver.kind=\"{solver}\""),
         ]);
     }
+    // BDF2 under every solver that offers it (its history, targets and velocities).
+    let bdf2 = native(&["--list-integrator-solvers".to_owned()])?;
+    for solver in bdf2.split_whitespace() {
+        checks.push(vec![
+            "case-a".into(),
+            SOLVER_STEPS.to_string(),
+            "energy=\"corotational\"".into(),
+            format!("solver.kind=\"{solver}\""),
+            "solver.integrator=\"bdf2\"".into(),
+        ]);
+    }
     // Case D at a headset's frame step under every solver that handles contact (barrier
     // contact in implicit, static and VBD), so contact is bit-identical in WebAssembly too.
     let contact = native(&["--list-contact-solvers".to_owned()])?;

@@ -46,6 +46,7 @@ fn split_table(settings: &[(f64, f64)], steps: usize) {
                 tolerance,
                 ..Default::default()
             },
+            ..Default::default()
         };
         let mut stepper = ImplicitStepper::new(&model, params).unwrap();
         let mut state = initial_state(&scene, &model).unwrap();

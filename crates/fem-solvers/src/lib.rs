@@ -8,7 +8,8 @@
 //! sparse Cholesky factorisation (faer), and for real-time frame rates the same implicit Euler
 //! step by cheaper iterations: Vertex Block Descent ([`VbdStepper`]), Projective Dynamics
 //! ([`PdStepper`], co-rotational) and L-BFGS with the Projective Dynamics matrix
-//! ([`QuasiNewtonStepper`]).
+//! ([`QuasiNewtonStepper`]). These four also take second-order BDF2 steps in place of
+//! backward Euler's ([`Integrator`], [`integrator`]).
 //!
 //! The pieces, kept apart:
 //! - a [`Model`] (mesh, energy, lumped masses, boundary conditions, loads, obstacles): fixed
@@ -126,7 +127,8 @@ pub use contact::{ipc, pressure};
 pub use model::{bc, diagnostics, grab, limits};
 pub use optim::newton;
 pub use steppers::{
-    colour, explicit, implicit, position_based, projective, quasi_newton, registry, statics, vbd,
+    colour, explicit, implicit, integrator, position_based, projective, quasi_newton, registry,
+    statics, vbd,
 };
 
 pub use bc::{PrescribedMotion, Region};
@@ -137,6 +139,7 @@ pub use error::SolverError;
 pub use explicit::{ExplicitParams, ExplicitScheme, ExplicitStepper};
 pub use grab::{Grab, GrabModel};
 pub use implicit::{ImplicitParams, ImplicitStepper};
+pub use integrator::Integrator;
 pub use model::state::State;
 pub use model::{Model, TimeStepCheck};
 pub use newton::{NewtonParams, NewtonReport};
@@ -169,11 +172,11 @@ pub use fem_core;
 pub mod prelude {
     pub use crate::{
         AnyStepper, BodyState, Clock, ContactParams, ExplicitParams, ExplicitScheme,
-        ExplicitStepper, Grab, GrabModel, Ground, ImplicitParams, ImplicitStepper, Model,
-        NewtonParams, ObstacleMotion, PbdParams, PbdStepper, PdParams, PdStepper, PrescribedMotion,
-        QuasiNewtonParams, QuasiNewtonStepper, Region, Solver, SolverError, SolverKind,
-        SolverParams, State, StaticParams, StaticSolver, StaticStepper, StepReport, Stepper,
-        VbdParams, VbdStepper, XpbdParams, XpbdStepper,
+        ExplicitStepper, Grab, GrabModel, Ground, ImplicitParams, ImplicitStepper, Integrator,
+        Model, NewtonParams, ObstacleMotion, PbdParams, PbdStepper, PdParams, PdStepper,
+        PrescribedMotion, QuasiNewtonParams, QuasiNewtonStepper, Region, Solver, SolverError,
+        SolverKind, SolverParams, State, StaticParams, StaticSolver, StaticStepper, StepReport,
+        Stepper, VbdParams, VbdStepper, XpbdParams, XpbdStepper,
     };
     pub use fem_core::prelude::*;
 }

@@ -5,16 +5,23 @@
 //! `cargo run --release -p fem-web --example state_hash -- case-a 500 [KEY=VALUE ...]`
 //! (each `KEY=VALUE` is set before stepping, as the page's controls do);
 //! `state_hash --list-solvers` prints the registry's solver names, `--list-contact-solvers`
-//! those that handle contact.
+//! those that handle contact, `--list-integrator-solvers` those with a choice of time
+//! integrator (BDF2).
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let list = args.first().map(String::as_str);
-    if list == Some("--list-solvers") || list == Some("--list-contact-solvers") {
-        let contact_only = list == Some("--list-contact-solvers");
+    if let Some(
+        which @ ("--list-solvers" | "--list-contact-solvers" | "--list-integrator-solvers"),
+    ) = list
+    {
         let names: Vec<&str> = fem_solvers::SolverKind::ALL
             .iter()
-            .filter(|k| !contact_only || k.capabilities().contact)
+            .filter(|k| match which {
+                "--list-contact-solvers" => k.capabilities().contact,
+                "--list-integrator-solvers" => k.default_params().integrator().is_some(),
+                _ => true,
+            })
             .map(|k| k.name())
             .collect();
         println!("{}", names.join(" "));

@@ -141,7 +141,7 @@ pub(crate) struct RigidUnknowns {
     first: usize,
     /// The current poses `(p_x, p_y, theta)`.
     q: Vec<[Real; 3]>,
-    /// The inertial targets (implicit Euler: `q + h q'`).
+    /// The inertial targets (implicit Euler: `q + h q'`; BDF2: [`RigidUnknowns::begin_towards`]).
     target: Vec<[Real; 3]>,
     /// The poses at the start of the step (the fallback start).
     start: Vec<[Real; 3]>,
@@ -197,6 +197,26 @@ impl RigidUnknowns {
                 ],
                 None => self.start[k],
             };
+            self.target[k] = self.q[k];
+        }
+        let q = std::mem::take(&mut self.q);
+        self.place(&q, x);
+        self.q = q;
+    }
+
+    /// As [`RigidUnknowns::begin`] with a step, but towards the given inertial targets
+    /// `targets` (one pose `(p_x, p_y, theta)` per body of the model, the model's order; BDF2's
+    /// prediction): the unknowns start at and aim for them.
+    pub(crate) fn begin_towards(
+        &mut self,
+        states: &[BodyState],
+        targets: &[[Real; 3]],
+        x: &mut [Vec2],
+    ) {
+        for (k, body) in self.bodies.iter().enumerate() {
+            let b = &states[body.index];
+            self.start[k] = [b.position.x, b.position.y, b.angle];
+            self.q[k] = targets[body.index];
             self.target[k] = self.q[k];
         }
         let q = std::mem::take(&mut self.q);
@@ -318,7 +338,7 @@ pub(crate) struct Potential<'a, E: Energy> {
     pub mesh: &'a Mesh,
     pub energy: &'a ElementEnergies<E>,
     pub masses: &'a [Real],
-    /// Inertia weight `1/h^2` (0 for statics).
+    /// Inertia weight `1/h^2` (BDF2: `9/(4 h^2)`; 0 for statics).
     pub weight: Real,
     /// The inertial target `x_hat` (ignored when `weight == 0`).
     pub target: &'a [Vec2],

@@ -24,8 +24,14 @@
 //! The starting guess is `x_hat` when its potential is finite, else the current positions (always
 //! valid), so a large step never starts from an inverted configuration.
 //!
-//! Registered as `implicit` ([`Solver`]); scene keys `dt`, `damping` and Newton's `tolerance`,
-//! `max_iterations`, `max_halvings`.
+//! **BDF2** (`integrator = "bdf2"`, [`crate::integrator`]): the same minimisation with the
+//! inertia weight `9 / (4 h^2)`, BDF2's target `x_hat = 4/3 x_n - 1/3 x_{n-1} + 8/9 h v_n -
+//! 2/9 h v_{n-1}` and velocity `(3 x_{n+1} - 4 x_n + x_{n-1}) / (2h)`, for the vertices, the free
+//! rigid bodies' poses and the dynamic obstacles' poses alike; the first step, and any step from
+//! a state the stepper did not commit, is backward Euler ([`ImplicitStepper::last_step_bdf2`]).
+//!
+//! Registered as `implicit` ([`Solver`]); scene keys `dt`, `damping`, `integrator` and Newton's
+//! `tolerance`, `max_iterations`, `max_halvings`.
 
 use fem_core::energy::Energy;
 use fem_core::math::{Real, Vec2, exp};
@@ -39,13 +45,18 @@ use crate::model::state::State;
 use crate::optim::newton::{NewtonParams, NewtonReport, NewtonSolver, Potential};
 use crate::rigid::BodyState;
 use crate::steppers::commit::{Kinematic, StepEnd};
+use crate::steppers::integrator::{
+    History, Integrator, bdf2_body_velocity, bdf2_obstacle_targets, bdf2_obstacle_velocities,
+    bdf2_pose_target, bdf2_target, bdf2_velocity, bdf2_weight,
+};
 use crate::steppers::registry::{Capabilities, Clock, Solver};
 use crate::steppers::report::StepReport;
 
 /// The default of [`ImplicitParams::velocity_tolerance`], m/s.
 pub const VELOCITY_TOLERANCE: Real = 1e-3;
 
-/// Parameters of [`ImplicitStepper`] (scene keys `dt`, `damping`, `tolerance`,
+/// Parameters of [`ImplicitStepper`] (scene keys `dt`, `damping`, `velocity_tolerance`,
+/// `integrator`, `tolerance`,
 /// `max_iterations`, `max_halvings`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(
@@ -65,6 +76,9 @@ pub struct ImplicitParams {
     /// `velocity_tolerance` of the converged step's: the real-time stopping rule
     /// (docs/implicit.md). Default `VELOCITY_TOLERANCE`.
     pub velocity_tolerance: Real,
+    /// The time integrator: backward Euler (default) or BDF2 (second order; see
+    /// [`crate::integrator`]).
+    pub integrator: Integrator,
     /// Newton settings (serde: flattened into this table).
     #[cfg_attr(feature = "serde", serde(flatten))]
     pub newton: NewtonParams,
@@ -76,6 +90,7 @@ impl Default for ImplicitParams {
             dt: 1e-3,
             damping: 0.0,
             velocity_tolerance: VELOCITY_TOLERANCE,
+            integrator: Integrator::BackwardEuler,
             newton: NewtonParams::default(),
         }
     }
@@ -125,6 +140,12 @@ pub struct ImplicitStepper {
     masses: Vec<Real>,
     /// The smallest distance over the candidate pairs at the end of the last step, m.
     min_distance: Real,
+    /// The previous step's state (BDF2).
+    history: History,
+    /// The free rigid bodies' BDF2 targets (one per body of the model).
+    rigid_targets: Vec<[Real; 3]>,
+    /// Whether the last step was a BDF2 step.
+    last_bdf2: bool,
 }
 
 impl ImplicitStepper {
@@ -166,7 +187,17 @@ impl ImplicitStepper {
             x_new: vec![Vec2::zeros(); n],
             v_new: vec![Vec2::zeros(); n],
             last: NewtonReport::default(),
+            history: History::new(params.integrator),
+            rigid_targets: Vec::new(),
+            last_bdf2: false,
         })
+    }
+
+    /// Whether the last step was a BDF2 step (false under backward Euler, and for a BDF2
+    /// stepper's first step and every step that fell back to backward Euler; see
+    /// [`crate::integrator`]).
+    pub fn last_step_bdf2(&self) -> bool {
+        self.last_bdf2
     }
 
     /// The parameters.
@@ -229,9 +260,20 @@ impl Stepper for ImplicitStepper {
             *self = ImplicitStepper::new(model, self.params)?;
         }
         let (h, t) = (self.params.dt, state.t);
+        let bdf2 = self.history.begin(state, h, model.layout());
+        self.last_bdf2 = false;
+        // The inertia weight: backward Euler's `1/h^2` or BDF2's `9/(4 h^2)`.
+        let weight = if bdf2 { bdf2_weight(h) } else { 1.0 / (h * h) };
         external_load(model, &mut self.load);
-        for ((xh, x), v) in self.target.iter_mut().zip(&state.x).zip(&state.v) {
-            *xh = x + h * v;
+        if bdf2 {
+            let prev = &self.history.prev;
+            for (i, xh) in self.target.iter_mut().enumerate() {
+                *xh = bdf2_target(state.x[i], prev.x[i], state.v[i], prev.v[i], h);
+            }
+        } else {
+            for ((xh, x), v) in self.target.iter_mut().zip(&state.x).zip(&state.v) {
+                *xh = x + h * v;
+            }
         }
         // Kinematic vertices go to their scheduled positions, both in the target and in the
         // unknowns (where they stay fixed).
@@ -239,14 +281,24 @@ impl Stepper for ImplicitStepper {
             .kinematics()
             .apply(t, h, t + h, &state.x, &mut self.target, &mut self.v_new);
         self.x_new.copy_from_slice(&self.target);
-        self.solver
-            .rigid()
-            .begin(&state.rigid, Some(h), &mut self.x_new);
+        if bdf2 {
+            let prev = &self.history.prev.rigid;
+            self.rigid_targets.clear();
+            self.rigid_targets
+                .extend((state.rigid.iter().zip(prev)).map(|(b, p)| bdf2_pose_target(b, p, h)));
+            self.solver
+                .rigid()
+                .begin_towards(&state.rigid, &self.rigid_targets, &mut self.x_new);
+        } else {
+            self.solver
+                .rigid()
+                .begin(&state.rigid, Some(h), &mut self.x_new);
+        }
         let potential = Potential {
             mesh: model.elastic_mesh(),
             energy: model.elastic_energies(),
             masses: &self.masses,
-            weight: 1.0 / (h * h),
+            weight,
             target: &self.target,
             load: &self.load,
             springs: model.springs(),
@@ -262,11 +314,15 @@ impl Stepper for ImplicitStepper {
         };
         if let Some(c) = self.contact.as_mut() {
             step_targets(model, state, h, &mut self.targets);
+            if bdf2 {
+                let prev = &self.history.prev.bodies;
+                bdf2_obstacle_targets(model, &state.bodies, prev, h, &mut self.targets);
+            }
             c.begin(
                 &state.x,
                 &state.bodies,
                 &self.targets,
-                1.0 / (h * h),
+                weight,
                 model.gravity(),
             );
             if let Some(at) = c.start_overlap(&state.x) {
@@ -300,21 +356,41 @@ impl Stepper for ImplicitStepper {
             Some(&current),
             self.contact.as_mut(),
         )?;
-        for ((v, xn), x) in self.v_new.iter_mut().zip(&self.x_new).zip(&state.x) {
-            *v = (xn - x) / h * self.decay;
+        if bdf2 {
+            let prev = &self.history.prev.x;
+            for (i, v) in self.v_new.iter_mut().enumerate() {
+                *v = bdf2_velocity(self.x_new[i], state.x[i], prev[i], h) * self.decay;
+            }
+        } else {
+            for ((v, xn), x) in self.v_new.iter_mut().zip(&self.x_new).zip(&state.x) {
+                *v = (xn - x) / h * self.decay;
+            }
         }
         self.rigid_new.clone_from(&state.rigid);
         for (k, q) in self.solver.rigid().poses() {
             let b = &mut self.rigid_new[k];
             let (p, angle) = (Vec2::new(q[0], q[1]), q[2]);
-            b.velocity = (p - b.position) / h * self.decay;
-            b.angular_velocity = (angle - b.angle) / h * self.decay;
-            b.position = p;
-            b.angle = angle;
+            if bdf2 {
+                let start = *b;
+                b.position = p;
+                b.angle = angle;
+                bdf2_body_velocity(b, &start, &self.history.prev.rigid[k], h);
+                b.velocity *= self.decay;
+                b.angular_velocity *= self.decay;
+            } else {
+                b.velocity = (p - b.position) / h * self.decay;
+                b.angular_velocity = (angle - b.angle) / h * self.decay;
+                b.position = p;
+                b.angle = angle;
+            }
         }
         let mut contacts = 0;
         if let Some(c) = self.contact.as_mut() {
             end_poses(c, model, state, h, &mut self.bodies_new);
+            if bdf2 {
+                let prev = &self.history.prev.bodies;
+                bdf2_obstacle_velocities(model, &state.bodies, prev, h, &mut self.bodies_new);
+            }
             self.min_distance = c.record(&self.x_new);
             contacts = c.contacts().len();
         }
@@ -347,6 +423,8 @@ impl Stepper for ImplicitStepper {
                 })
             }
         })?;
+        self.history.commit(state);
+        self.last_bdf2 = bdf2;
         let out = StepReport {
             min_det_f: report.min_det_f,
             inverted: report.inverted,
@@ -381,7 +459,7 @@ impl Solver for ImplicitStepper {
         factorisation: true,
         deterministic_across_threads: true,
         clock: Clock::Time,
-        converges_to: "the exact solution as dt -> 0 (first order); each step to its Newton tolerance",
+        converges_to: "the exact solution as dt -> 0 (first order; second order with integrator = bdf2); each step to its Newton tolerance",
     };
 
     fn validate_params(p: &ImplicitParams, prefix: &str) -> Result<(), SolverError> {
@@ -394,5 +472,9 @@ impl Solver for ImplicitStepper {
 
     fn dt_mut(p: &mut ImplicitParams) -> Option<&mut Real> {
         Some(&mut p.dt)
+    }
+
+    fn integrator_mut(p: &mut ImplicitParams) -> Option<&mut Integrator> {
+        Some(&mut p.integrator)
     }
 }

@@ -6,6 +6,8 @@
 //! - [`explicit`]: Algorithm I (symplectic or the printed forward Euler);
 //! - [`position_based`]: energy-based PBD and XPBD;
 //! - [`implicit`]: implicit Euler by Newton on the incremental potential;
+//! - [`integrator`]: backward Euler or BDF2, for the solvers that minimise an incremental
+//!   potential (implicit, VBD, Projective Dynamics, quasi-Newton);
 //! - [`statics`]: quasi-static equilibrium over a load factor;
 //! - [`vbd`]: Vertex Block Descent;
 //! - [`projective`]: Projective Dynamics (co-rotational);
@@ -29,6 +31,7 @@ pub mod colour;
 pub(crate) mod commit;
 pub mod explicit;
 pub mod implicit;
+pub mod integrator;
 pub mod position_based;
 pub mod projective;
 pub mod quasi_newton;

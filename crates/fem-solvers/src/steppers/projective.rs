@@ -46,8 +46,14 @@
 //! handled yet (refused, as for implicit Euler). The step's residual is the largest position
 //! change of its last iteration, m (with a positive tolerance: the gradient norm above, N).
 //!
+//! **BDF2** (`integrator = "bdf2"`, [`crate::integrator`]): the iterations minimise BDF2's
+//! potential (inertia weight `9 / (4 h^2)`, BDF2's target and velocity) with a second global
+//! matrix `9 M / (4 h^2) + L`, factorised with the first when the stepper is built; the first
+//! step, and any step from a state the stepper did not commit, is backward Euler with the
+//! first matrix.
+//!
 //! Registered as `pd` ([`Solver`]); scene keys `dt`, `iterations`, `damping`,
-//! `chebyshev_rho`, `residual_tolerance`.
+//! `chebyshev_rho`, `residual_tolerance`, `integrator`.
 
 use fem_core::energy::Energy;
 use fem_core::math::{Mat2, Real, Vec2, exp};
@@ -69,6 +75,7 @@ use crate::model::state::State;
 use crate::optim::newton::force_scale;
 use crate::optim::pd_system::{PdSystem, element_lame};
 use crate::steppers::implicit::external_load;
+use crate::steppers::integrator::{History, Integrator, bdf2_target, bdf2_weight};
 use crate::steppers::registry::{Capabilities, Clock, Solver};
 use crate::steppers::report::StepReport;
 use crate::steppers::vbd::{Chebyshev, commit_positions};
@@ -98,6 +105,11 @@ pub struct PdParams {
     /// `iterations` iterations and evaluates no gradient. Default 0.
     #[cfg_attr(feature = "serde", serde(rename = "residual_tolerance"))]
     pub tolerance: Real,
+    /// The time integrator: backward Euler (default) or BDF2 (second order; see
+    /// [`crate::integrator`]). BDF2's inertia weight differs from backward Euler's, so a BDF2
+    /// stepper factorises two matrices (its first step, and any step that falls back, is
+    /// backward Euler).
+    pub integrator: Integrator,
 }
 
 impl Default for PdParams {
@@ -108,6 +120,7 @@ impl Default for PdParams {
             damping: 0.0,
             chebyshev_rho: 0.0,
             tolerance: 0.0,
+            integrator: Integrator::BackwardEuler,
         }
     }
 }
@@ -140,7 +153,15 @@ pub struct PdStepper {
     decay: Real,
     n_triangles: usize,
     els: Vec<PackedElement>,
+    /// `M / h^2 + L`, factorised.
     system: PdSystem,
+    /// Under BDF2, `9 M / (4 h^2) + L`, factorised.
+    bdf2_system: Option<PdSystem>,
+    /// The previous step's state (BDF2).
+    history: History,
+    /// Whether the current (or last) step is a BDF2 step: which matrix the global step solves
+    /// with.
+    bdf2: bool,
     /// Per triangle: `2 a mu` and `2 a lambda`.
     w_mu: Vec<Real>,
     w_lambda: Vec<Real>,
@@ -213,6 +234,18 @@ impl PdStepper {
             &kinematic,
             "pd",
         )?;
+        let bdf2_system = match params.integrator {
+            Integrator::Bdf2 => Some(PdSystem::new(
+                mesh,
+                model.masses(),
+                &weights,
+                bdf2_weight(h),
+                model.springs(),
+                &kinematic,
+                "pd",
+            )?),
+            _ => None,
+        };
         let free: Vec<u32> = (0..n as u32).filter(|&v| !kinematic[v as usize]).collect();
         Ok(PdStepper {
             layout: model.layout(),
@@ -222,6 +255,9 @@ impl PdStepper {
             els: pack(mesh, model.energies().tags()),
             rhs: vec![0.0; 2 * system.n_free()],
             system,
+            bdf2_system,
+            history: History::new(params.integrator),
+            bdf2: false,
             w_mu,
             w_lambda,
             projections: vec![Mat2::zeros(); mesh.n_triangles()],
@@ -253,9 +289,14 @@ impl PdStepper {
 
     /// Numeric factorisations of the global matrix since the stepper was built: one, whatever
     /// the number of steps, plus one for each change of the model's layout (a grab started or
-    /// ended).
+    /// ended); twice that under BDF2 (backward Euler's matrix and BDF2's).
     pub fn factorisations(&self) -> usize {
-        self.system.factorisations()
+        self.system.factorisations() + self.bdf2_system.as_ref().map_or(0, |s| s.factorisations())
+    }
+
+    /// Whether the last step was a BDF2 step (see [`crate::integrator`]).
+    pub fn last_step_bdf2(&self) -> bool {
+        self.bdf2
     }
 
     /// The force scale of the last step's residual test, N: with a positive tolerance the
@@ -328,7 +369,10 @@ impl PdStepper {
     /// positions into `self.x`; returns the largest position change, m.
     fn global_step(&mut self) -> Real {
         let n = self.system.n_free();
-        self.system.solve(&mut self.rhs);
+        match (&mut self.bdf2_system, self.bdf2) {
+            (Some(system), true) => system.solve(&mut self.rhs),
+            _ => self.system.solve(&mut self.rhs),
+        }
         let mut change: Real = 0.0;
         for (k, &v) in self.free.iter().enumerate() {
             let p = Vec2::new(self.rhs[k], self.rhs[n + k]);
@@ -417,18 +461,28 @@ impl Stepper for PdStepper {
             self.system.add_earlier(earlier);
         }
         let (h, t) = (self.params.dt, state.t);
-        let w = 1.0 / (h * h);
+        let bdf2 = self.history.begin(state, h, model.layout());
+        self.bdf2 = bdf2;
+        let w = if bdf2 { bdf2_weight(h) } else { 1.0 / (h * h) };
         external_load(model, &mut self.load);
         let masses = model.masses();
-        for (i, ((xh, x), v)) in self
-            .target
-            .iter_mut()
-            .zip(&state.x)
-            .zip(&state.v)
-            .enumerate()
-        {
-            *xh = x + h * v;
-            self.x[i] = *xh + self.load[i] * (h * h / masses[i]);
+        if bdf2 {
+            let (prev, hh) = (&self.history.prev, 1.0 / w);
+            for (i, xh) in self.target.iter_mut().enumerate() {
+                *xh = bdf2_target(state.x[i], prev.x[i], state.v[i], prev.v[i], h);
+                self.x[i] = *xh + self.load[i] * (hh / masses[i]);
+            }
+        } else {
+            for (i, ((xh, x), v)) in self
+                .target
+                .iter_mut()
+                .zip(&state.x)
+                .zip(&state.v)
+                .enumerate()
+            {
+                *xh = x + h * v;
+                self.x[i] = *xh + self.load[i] * (h * h / masses[i]);
+            }
         }
         model
             .kinematics()
@@ -486,7 +540,9 @@ impl Stepper for PdStepper {
             t + h,
             self.decay,
             true,
+            bdf2.then_some(&self.history.prev.x[..]),
         )?;
+        self.history.commit(state);
         Ok(StepReport {
             min_det_f: inv.min_det_f,
             inverted: inv.inverted,
@@ -512,7 +568,7 @@ impl Solver for PdStepper {
         factorisation: true,
         deterministic_across_threads: true,
         clock: Clock::Time,
-        converges_to: "each step to implicit Euler's as iterations grow (the co-rotational energy is exactly two projective terms, area term included)",
+        converges_to: "each step to implicit Euler's (BDF2's with integrator = bdf2) as iterations grow (the co-rotational energy is exactly two projective terms, area term included)",
     };
 
     fn validate_params(p: &PdParams, prefix: &str) -> Result<(), SolverError> {
@@ -525,5 +581,9 @@ impl Solver for PdStepper {
 
     fn dt_mut(p: &mut PdParams) -> Option<&mut Real> {
         Some(&mut p.dt)
+    }
+
+    fn integrator_mut(p: &mut PdParams) -> Option<&mut Integrator> {
+        Some(&mut p.integrator)
     }
 }

@@ -29,8 +29,13 @@
 //!
 //! Contact is not handled yet (refused, as for implicit Euler).
 //!
+//! **BDF2** (`integrator = "bdf2"`, [`crate::integrator`]): L-BFGS minimises BDF2's
+//! potential (inertia weight `9 / (4 h^2)`, BDF2's target and velocity) with the initial Hessian
+//! `9 M / (4 h^2) + L`, factorised with backward Euler's when the stepper is built; the first
+//! step, and any step from a state the stepper did not commit, is backward Euler.
+//!
 //! Registered as `quasi-newton` ([`Solver`]); scene keys `dt`, `iterations`, `history`,
-//! `damping`, `tolerance`, `max_halvings`.
+//! `damping`, `tolerance`, `max_halvings`, `integrator`.
 
 use fem_core::assembly::{Scratch, populate_forces};
 use fem_core::energy::Energy;
@@ -46,6 +51,7 @@ use crate::model::state::State;
 use crate::optim::newton::{Potential, force_scale};
 use crate::optim::pd_system::{PdSystem, element_lame};
 use crate::steppers::implicit::external_load;
+use crate::steppers::integrator::{History, Integrator, bdf2_target, bdf2_weight};
 use crate::steppers::registry::{Capabilities, Clock, Solver};
 use crate::steppers::report::StepReport;
 use crate::steppers::vbd::{commit_positions, forbids_inversion, inversion};
@@ -74,6 +80,10 @@ pub struct QuasiNewtonParams {
     pub tolerance: Real,
     /// Most halvings of the line search. Default 40.
     pub max_halvings: usize,
+    /// The time integrator: backward Euler (default) or BDF2 (second order; see
+    /// [`crate::integrator`]). Under BDF2 the initial Hessian is factorised for each of the
+    /// two inertia weights (backward Euler's first step and fall-backs, BDF2's steps).
+    pub integrator: Integrator,
 }
 
 impl Default for QuasiNewtonParams {
@@ -85,6 +95,7 @@ impl Default for QuasiNewtonParams {
             damping: 0.0,
             tolerance: 1e-8,
             max_halvings: 40,
+            integrator: Integrator::BackwardEuler,
         }
     }
 }
@@ -146,7 +157,14 @@ pub struct QuasiNewtonStepper {
     decay: Real,
     n_triangles: usize,
     els: Vec<PackedElement>,
+    /// `M / h^2 + L`, factorised.
     system: PdSystem,
+    /// Under BDF2, `9 M / (4 h^2) + L`, factorised.
+    bdf2_system: Option<PdSystem>,
+    /// The previous step's state (BDF2).
+    history: History,
+    /// Whether the current (or last) step is a BDF2 step: which matrix the direction uses.
+    bdf2: bool,
     forbids_inversion: bool,
     /// The modulus times the body's area: the scale of the round-off of the elastic energy.
     psi_scale: Real,
@@ -217,6 +235,18 @@ impl QuasiNewtonStepper {
             &kinematic,
             "quasi-newton",
         )?;
+        let bdf2_system = match params.integrator {
+            Integrator::Bdf2 => Some(PdSystem::new(
+                mesh,
+                model.masses(),
+                &weights,
+                bdf2_weight(h),
+                model.springs(),
+                &kinematic,
+                "quasi-newton",
+            )?),
+            _ => None,
+        };
         let free: Vec<u32> = (0..n as u32).filter(|&v| !kinematic[v as usize]).collect();
         let m = 2 * free.len();
         let hist = params.history;
@@ -227,6 +257,9 @@ impl QuasiNewtonStepper {
             n_triangles: mesh.n_triangles(),
             els: pack(mesh, model.energies().tags()),
             system,
+            bdf2_system,
+            history: History::new(params.integrator),
+            bdf2: false,
             forbids_inversion: forbids_inversion(model.energy()),
             psi_scale,
             free,
@@ -261,9 +294,15 @@ impl QuasiNewtonStepper {
     }
 
     /// Numeric factorisations of the initial Hessian since the stepper was built: one, plus one
-    /// for each change of the model's layout (a grab started or ended).
+    /// for each change of the model's layout (a grab started or ended); twice that under BDF2
+    /// (backward Euler's matrix and BDF2's).
     pub fn factorisations(&self) -> usize {
-        self.system.factorisations()
+        self.system.factorisations() + self.bdf2_system.as_ref().map_or(0, |s| s.factorisations())
+    }
+
+    /// Whether the last step was a BDF2 step (see [`crate::integrator`]).
+    pub fn last_step_bdf2(&self) -> bool {
+        self.bdf2
     }
 
     /// The potential at `x` (load work measured from the rest positions, as Newton's) and the
@@ -334,7 +373,10 @@ impl QuasiNewtonStepper {
                 *d -= a * y;
             }
         }
-        self.system.solve(&mut self.d);
+        match (&mut self.bdf2_system, self.bdf2) {
+            (Some(system), true) => system.solve(&mut self.d),
+            _ => self.system.solve(&mut self.d),
+        }
         // Oldest to newest.
         for k in 0..self.pairs {
             let i = (self.head + k) % hist.max(1);
@@ -406,18 +448,28 @@ impl Stepper for QuasiNewtonStepper {
             self.system.add_earlier(earlier);
         }
         let (h, t) = (self.params.dt, state.t);
-        let w = 1.0 / (h * h);
+        let bdf2 = self.history.begin(state, h, model.layout());
+        self.bdf2 = bdf2;
+        let w = if bdf2 { bdf2_weight(h) } else { 1.0 / (h * h) };
         external_load(model, &mut self.load);
         let masses = model.masses();
-        for (i, ((xh, x), v)) in self
-            .target
-            .iter_mut()
-            .zip(&state.x)
-            .zip(&state.v)
-            .enumerate()
-        {
-            *xh = x + h * v;
-            self.x[i] = *xh + self.load[i] * (h * h / masses[i]);
+        if bdf2 {
+            let (prev, hh) = (&self.history.prev, 1.0 / w);
+            for (i, xh) in self.target.iter_mut().enumerate() {
+                *xh = bdf2_target(state.x[i], prev.x[i], state.v[i], prev.v[i], h);
+                self.x[i] = *xh + self.load[i] * (hh / masses[i]);
+            }
+        } else {
+            for (i, ((xh, x), v)) in self
+                .target
+                .iter_mut()
+                .zip(&state.x)
+                .zip(&state.v)
+                .enumerate()
+            {
+                *xh = x + h * v;
+                self.x[i] = *xh + self.load[i] * (h * h / masses[i]);
+            }
         }
         let kinematics = model.kinematics();
         kinematics.apply(t, h, t + h, &state.x, &mut self.x, &mut self.v_new);
@@ -514,7 +566,9 @@ impl Stepper for QuasiNewtonStepper {
             t + h,
             self.decay,
             true,
+            bdf2.then_some(&self.history.prev.x[..]),
         )?;
+        self.history.commit(state);
         let out = StepReport {
             min_det_f: inv.min_det_f,
             inverted: inv.inverted,
@@ -542,7 +596,7 @@ impl Solver for QuasiNewtonStepper {
         factorisation: true,
         deterministic_across_threads: true,
         clock: Clock::Time,
-        converges_to: "each step to implicit Euler's (Newton's step to its tolerance) as iterations grow",
+        converges_to: "each step to implicit Euler's (BDF2's with integrator = bdf2; Newton's step to its tolerance) as iterations grow",
     };
 
     fn validate_params(p: &QuasiNewtonParams, prefix: &str) -> Result<(), SolverError> {
@@ -555,5 +609,9 @@ impl Solver for QuasiNewtonStepper {
 
     fn dt_mut(p: &mut QuasiNewtonParams) -> Option<&mut Real> {
         Some(&mut p.dt)
+    }
+
+    fn integrator_mut(p: &mut QuasiNewtonParams) -> Option<&mut Integrator> {
+        Some(&mut p.integrator)
     }
 }

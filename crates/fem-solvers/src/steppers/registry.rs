@@ -24,6 +24,7 @@ use fem_core::energy::Energy;
 use fem_core::math::Real;
 
 use super::Stepper;
+use super::integrator::Integrator;
 use crate::error::SolverError;
 use crate::model::Model;
 use crate::model::state::State;
@@ -110,6 +111,11 @@ pub trait Solver: Stepper + Sized {
     fn build<E: Energy>(model: &Model<E>, p: &Self::Params) -> Result<Self, SolverError>;
     /// The time step field, if the solver has one (a [`Clock::LoadFactor`] solver has none).
     fn dt_mut(p: &mut Self::Params) -> Option<&mut Real>;
+    /// The time integrator field, if the solver minimises an incremental potential and can
+    /// take BDF2 steps ([`Integrator`]); `None` by default.
+    fn integrator_mut(_p: &mut Self::Params) -> Option<&mut Integrator> {
+        None
+    }
     /// A warning to show before a run (the explicit stability check); `None` by default.
     fn time_step_warning(&self) -> Option<String> {
         None
@@ -218,6 +224,28 @@ macro_rules! registry {
                             *field = dt;
                         }
                     })+
+                }
+            }
+
+            /// The time integrator; `None` for a solver without the choice (explicit,
+            /// position-based, static).
+            pub fn integrator(&self) -> Option<$crate::steppers::integrator::Integrator> {
+                match self {
+                    $(SolverParams::$variant(p) => <$ty as Solver>::integrator_mut(&mut p.clone()).map(|i| *i),)+
+                }
+            }
+
+            /// Set the time integrator; returns whether the solver has the choice (does
+            /// nothing otherwise).
+            pub fn set_integrator(&mut self, integrator: $crate::steppers::integrator::Integrator) -> bool {
+                match self {
+                    $(SolverParams::$variant(p) => match <$ty as Solver>::integrator_mut(p) {
+                        Some(field) => {
+                            *field = integrator;
+                            true
+                        }
+                        None => false,
+                    },)+
                 }
             }
 

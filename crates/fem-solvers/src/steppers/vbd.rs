@@ -115,8 +115,14 @@
 //! over the vertices; nothing is allocated. With tolerance 0 no gradient is evaluated and the
 //! sweeps, the bits and the report are those of a fixed count.
 //!
+//! **BDF2** (`integrator = "bdf2"`, [`crate::integrator`]): each substep descends BDF2's
+//! potential instead (inertia weight `9 / (4 h^2)`, BDF2's target for the vertices, the free
+//! bodies' poses and the dynamic obstacles, BDF2's velocities; the initial guesses use
+//! `4 h^2 / 9` where they used `h^2`); a substep whose incoming state is not the one the
+//! stepper committed last (the first, a restored state) is backward Euler.
+//!
 //! Registered as `vbd` ([`Solver`]); scene keys `dt`, `substeps`, `iterations`, `damping`,
-//! `init`, `chebyshev_rho`, `line_search`, `residual_tolerance`.
+//! `init`, `chebyshev_rho`, `line_search`, `residual_tolerance`, `integrator`.
 
 use fem_core::assembly::{Scratch, populate_forces};
 use fem_core::energy::{ElementEnergies, Energy};
@@ -144,6 +150,10 @@ use crate::rigid::{BodyState, Frame, RigidBody, cross};
 use crate::steppers::colour::VertexColouring;
 use crate::steppers::commit::{Kinematic, StepEnd};
 use crate::steppers::implicit::external_load;
+use crate::steppers::integrator::{
+    History, Integrator, bdf2_body_velocity, bdf2_obstacle_targets, bdf2_obstacle_velocities,
+    bdf2_pose_target, bdf2_target, bdf2_velocity, bdf2_weight,
+};
 use crate::steppers::registry::{Capabilities, Clock, Solver};
 use crate::steppers::report::StepReport;
 
@@ -204,6 +214,9 @@ pub struct VbdParams {
     /// exactly `iterations` sweeps and evaluates no gradient. Default 0.
     #[cfg_attr(feature = "serde", serde(rename = "residual_tolerance"))]
     pub tolerance: Real,
+    /// The time integrator of each substep: backward Euler (default) or BDF2 (second order;
+    /// see [`crate::integrator`]).
+    pub integrator: Integrator,
 }
 
 impl Default for VbdParams {
@@ -217,6 +230,7 @@ impl Default for VbdParams {
             chebyshev_rho: 0.0,
             line_search: false,
             tolerance: 0.0,
+            integrator: Integrator::BackwardEuler,
         }
     }
 }
@@ -303,6 +317,10 @@ pub struct VbdStepper {
     rigid_prev: Vec<Vec2>,
     /// The buffers of the residual test (sized only when the tolerance is positive).
     gradient: GradientBuffers,
+    /// The previous substep's state (BDF2).
+    history: History,
+    /// Substeps of the last step that were BDF2 steps.
+    last_bdf2: usize,
 }
 
 /// The buffers of VBD's residual test, reused every sweep.
@@ -438,7 +456,7 @@ struct Local<'a, E: Energy> {
     els: &'a [PackedElement],
     adj: &'a VertexAdjacency,
     masses: &'a [Real],
-    /// `1 / h^2`.
+    /// The inertia weight: `1 / h^2` (BDF2: `9 / (4 h^2)`).
     w: Real,
     target: &'a [Vec2],
     load: &'a [Vec2],
@@ -946,9 +964,10 @@ fn gradient_norm<E: Energy>(
 
 /// The end of a step of the solvers that minimise implicit Euler's potential by iterations
 /// (VBD, Projective Dynamics, quasi-Newton): the inversion statistics of the new positions
-/// `x`, the velocities `(x - x_t) / h` damped by `decay` into `v_new`, and the commit (kinematic
-/// vertices on their schedule over `[t, t + h]` of a step that ends at `until`). Returns the
-/// statistics.
+/// `x`, the velocities `(x - x_t) / h` (with `prev`, the positions at the start of the previous
+/// step: BDF2's `(3 x - 4 x_t + x_prev) / (2h)`) damped by `decay` into `v_new`, and the commit
+/// (kinematic vertices on their schedule over `[t, t + h]` of a step that ends at `until`).
+/// Returns the statistics.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn commit_positions<E: Energy>(
     model: &Model<E>,
@@ -962,10 +981,20 @@ pub(crate) fn commit_positions<E: Energy>(
     until: Real,
     decay: Real,
     count_step: bool,
+    prev: Option<&[Vec2]>,
 ) -> Result<Inversion, SolverError> {
     let inv = inversion(els, x);
-    for ((v, xn), x0) in v_new.iter_mut().zip(x.iter()).zip(&state.x) {
-        *v = (xn - x0) / h * decay;
+    match prev {
+        Some(prev) => {
+            for (i, v) in v_new.iter_mut().enumerate() {
+                *v = bdf2_velocity(x[i], state.x[i], prev[i], h) * decay;
+            }
+        }
+        None => {
+            for ((v, xn), x0) in v_new.iter_mut().zip(x.iter()).zip(&state.x) {
+                *v = (xn - x0) / h * decay;
+            }
+        }
     }
     let t = state.t;
     StepEnd {
@@ -1084,6 +1113,8 @@ impl VbdStepper {
                 },
                 ..GradientBuffers::default()
             },
+            history: History::new(params.integrator),
+            last_bdf2: 0,
         })
     }
 
@@ -1109,17 +1140,32 @@ impl VbdStepper {
         self.min_distance
     }
 
-    /// Forget the previous step's velocity (the adaptive guess then starts afresh), e.g.
-    /// after the state was replaced.
+    /// Forget the previous step's velocity (the adaptive guess then starts afresh) and, under
+    /// BDF2, the previous state (the next step is backward Euler), e.g. after the state was
+    /// replaced. (A BDF2 stepper also notices a replaced state by itself.)
     pub fn reset(&mut self) {
         self.v_prev = None;
+        self.history.clear();
+    }
+
+    /// How many substeps of the last step were BDF2 steps (0 under backward Euler; see
+    /// [`crate::integrator`]).
+    pub fn last_bdf2_substeps(&self) -> usize {
+        self.last_bdf2
     }
 
     /// The free bodies' loads, inertial targets and first poses of a substep (see the module
     /// docs) into `self.blocks` and `self.rigid_new`, their vertices placed in `self.x`.
     /// `previous`: every body starts at its pose (with contact, or after a guess that inverted
-    /// a triangle).
-    fn body_guesses<E: Energy>(&mut self, model: &Model<E>, state: &State, previous: bool) {
+    /// a triangle). `bdf2`: BDF2's targets (from the history), with `hh = 4 h^2 / 9` in place
+    /// of `h^2`.
+    fn body_guesses<E: Energy>(
+        &mut self,
+        model: &Model<E>,
+        state: &State,
+        previous: bool,
+        bdf2: bool,
+    ) {
         let h = self.h;
         let gravity = model.gravity();
         self.rigid_new.clone_from(&state.rigid);
@@ -1138,14 +1184,22 @@ impl VbdStepper {
                 force += f;
                 torque += cross(state.x[v as usize] - s.position, f);
             }
-            let y = s.position + s.velocity * h;
-            blk.target = (y + gravity * (h * h), s.angle + s.angular_velocity * h);
+            let (y, hh) = if bdf2 {
+                let [x, y, a] = bdf2_pose_target(&s, &self.history.prev.rigid[k], h);
+                let hh = 1.0 / bdf2_weight(h);
+                blk.target = (Vec2::new(x, y) + gravity * hh, a);
+                (Vec2::new(x, y), hh)
+            } else {
+                let y = s.position + s.velocity * h;
+                blk.target = (y + gravity * (h * h), s.angle + s.angular_velocity * h);
+                (y, h * h)
+            };
             let (position, angle) = match self.params.init {
                 _ if previous => (s.position, s.angle),
                 VbdInit::Previous => (s.position, s.angle),
                 VbdInit::Inertia => (
-                    blk.target.0 + force * (h * h / body.mass),
-                    blk.target.1 + torque * (h * h / body.inertia),
+                    blk.target.0 + force * (hh / body.mass),
+                    blk.target.1 + torque * (hh / body.inertia),
                 ),
                 VbdInit::Adaptive => {
                     let a_ext = gravity + force / body.mass;
@@ -1163,7 +1217,7 @@ impl VbdStepper {
                     } else {
                         Vec2::zeros()
                     };
-                    (y + along * (h * h), blk.target.1)
+                    (y + along * hh, blk.target.1)
                 }
             };
             let pose = &mut self.rigid_new[k];
@@ -1174,15 +1228,15 @@ impl VbdStepper {
     }
 
     /// The initial guess of a substep into `self.x` (free vertices; kinematic ones are placed
-    /// by the caller).
-    fn initial_guess<E: Energy>(&mut self, model: &Model<E>, state: &State) {
+    /// by the caller); `hh` is `h^2` (BDF2: `4 h^2 / 9`, the inverse of the inertia weight).
+    fn initial_guess<E: Energy>(&mut self, model: &Model<E>, state: &State, hh: Real) {
         let h = self.h;
         let masses = model.masses();
         match self.params.init {
             VbdInit::Previous => self.x.copy_from_slice(&state.x),
             VbdInit::Inertia => {
                 for (i, x) in self.x.iter_mut().enumerate() {
-                    *x = self.target[i] + self.load[i] * (h * h / masses[i]);
+                    *x = self.target[i] + self.load[i] * (hh / masses[i]);
                 }
             }
             VbdInit::Adaptive => {
@@ -1199,7 +1253,7 @@ impl VbdStepper {
                     } else {
                         Vec2::zeros()
                     };
-                    *x = self.target[i] + along * (h * h);
+                    *x = self.target[i] + along * hh;
                 }
             }
         }
@@ -1334,23 +1388,39 @@ impl Stepper for VbdStepper {
         let mut sweeps = 0;
         let mut inv = Inversion::EMPTY;
         external_load(model, &mut self.load);
+        self.last_bdf2 = 0;
         for sub in 0..self.params.substeps {
             let t = state.t;
-            for ((xh, x), v) in self.target.iter_mut().zip(&state.x).zip(&state.v) {
-                *xh = x + h * v;
+            let bdf2 = self.history.begin(state, h, model.layout());
+            // The inertia weight and its inverse: backward Euler's `1/h^2`, or BDF2's
+            // `9/(4 h^2)`.
+            let (w, hh) = if bdf2 {
+                (bdf2_weight(h), 1.0 / bdf2_weight(h))
+            } else {
+                (1.0 / (h * h), h * h)
+            };
+            if bdf2 {
+                let prev = &self.history.prev;
+                for (i, xh) in self.target.iter_mut().enumerate() {
+                    *xh = bdf2_target(state.x[i], prev.x[i], state.v[i], prev.v[i], h);
+                }
+            } else {
+                for ((xh, x), v) in self.target.iter_mut().zip(&state.x).zip(&state.v) {
+                    *xh = x + h * v;
+                }
             }
-            self.initial_guess(model, state);
+            self.initial_guess(model, state, hh);
             let kinematics = model.kinematics();
             kinematics.apply(t, h, until, &state.x, &mut self.x, &mut self.v_new);
             let rigid = !self.blocks.is_empty();
             if rigid {
-                self.body_guesses(model, state, self.contact.is_some());
+                self.body_guesses(model, state, self.contact.is_some(), bdf2);
             }
             if self.forbids_inversion && inversion(&self.els, &self.x).inverted > 0 {
                 self.x.copy_from_slice(&state.x);
                 kinematics.apply(t, h, until, &state.x, &mut self.x, &mut self.v_new);
                 if rigid {
-                    self.body_guesses(model, state, true);
+                    self.body_guesses(model, state, true, bdf2);
                 }
                 stats.fallback_guess = true;
             }
@@ -1360,6 +1430,7 @@ impl Stepper for VbdStepper {
                     model,
                     state,
                     h,
+                    (w, bdf2.then_some(&self.history.prev.bodies[..])),
                     &mut self.targets,
                     &mut self.x,
                     &mut self.v_new,
@@ -1374,7 +1445,7 @@ impl Stepper for VbdStepper {
                 els: &self.els,
                 adj: model.elastic_mesh().adjacency(),
                 masses: model.masses(),
-                w: 1.0 / (h * h),
+                w,
                 target: &self.target,
                 load: &self.load,
                 line_search: self.params.line_search,
@@ -1397,7 +1468,7 @@ impl Stepper for VbdStepper {
                 let (first, elastic) = gradient_norm(
                     model,
                     &self.x,
-                    (1.0 / (h * h), &self.target, &self.load),
+                    (w, &self.target, &self.load),
                     &self.colouring.order,
                     &self.blocks,
                     &self.rigid_new,
@@ -1462,7 +1533,7 @@ impl Stepper for VbdStepper {
                     residual = gradient_norm(
                         model,
                         &self.x,
-                        (1.0 / (h * h), &self.target, &self.load),
+                        (w, &self.target, &self.load),
                         &self.colouring.order,
                         &self.blocks,
                         &self.rigid_new,
@@ -1484,13 +1555,29 @@ impl Stepper for VbdStepper {
                 // The bodies' velocities, as the vertices' (`commit_positions`).
                 for blk in &self.blocks {
                     let (s, b) = (&state.rigid[blk.body], &mut self.rigid_new[blk.body]);
-                    b.velocity = (b.position - s.position) / h * self.decay;
-                    b.angular_velocity = (b.angle - s.angle) / h * self.decay;
+                    if bdf2 {
+                        bdf2_body_velocity(b, s, &self.history.prev.rigid[blk.body], h);
+                        b.velocity *= self.decay;
+                        b.angular_velocity *= self.decay;
+                    } else {
+                        b.velocity = (b.position - s.position) / h * self.decay;
+                        b.angular_velocity = (b.angle - s.angle) / h * self.decay;
+                    }
                 }
             }
             let bodies = match self.contact.as_mut() {
                 Some(c) => {
                     end_poses(c, model, state, h, &mut self.bodies_new);
+                    if bdf2 {
+                        let prev = &self.history.prev.bodies;
+                        bdf2_obstacle_velocities(
+                            model,
+                            &state.bodies,
+                            prev,
+                            h,
+                            &mut self.bodies_new,
+                        );
+                    }
                     self.min_distance = c.record(&self.x);
                     Some(&mut self.bodies_new)
                 }
@@ -1508,7 +1595,10 @@ impl Stepper for VbdStepper {
                 until,
                 self.decay,
                 sub + 1 == self.params.substeps,
+                bdf2.then_some(&self.history.prev.x[..]),
             )?;
+            self.history.commit(state);
+            self.last_bdf2 += usize::from(bdf2);
         }
         self.stats = stats;
         Ok(StepReport {
@@ -1536,24 +1626,25 @@ const CONTACT_MARGIN: Real = 3.0;
 /// The start of a substep with barrier contact: the obstacles' targets (inertial predictions
 /// of dynamic bodies, the schedule's poses of kinematic ones) and lagged friction, the start
 /// checked apart, and the initial guess `x` (and the obstacles' poses) moved from the state
-/// towards it only as far as the CCD allows. `scratch` is a buffer of vertex vectors.
+/// towards it only as far as the CCD allows. `weight` is the inertia weight (`1/h^2`, BDF2's
+/// `9/(4 h^2)`) and `prev`, under BDF2, the obstacles' states at the start of the previous
+/// substep (BDF2's targets). `scratch` is a buffer of vertex vectors.
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn start_contact<E: Energy>(
     c: &mut BarrierContact,
     model: &Model<E>,
     state: &State,
     h: Real,
+    (weight, prev): (Real, Option<&[BodyState]>),
     targets: &mut Vec<[Real; 3]>,
     x: &mut [Vec2],
     scratch: &mut [Vec2],
 ) -> Result<(), SolverError> {
     step_targets(model, state, h, targets);
-    c.begin(
-        &state.x,
-        &state.bodies,
-        targets,
-        1.0 / (h * h),
-        model.gravity(),
-    );
+    if let Some(prev) = prev {
+        bdf2_obstacle_targets(model, &state.bodies, prev, h, targets);
+    }
+    c.begin(&state.x, &state.bodies, targets, weight, model.gravity());
     if let Some(at) = c.start_overlap(&state.x) {
         return Err(SolverError::invalid(
             "vbd.contact",
@@ -1600,7 +1691,7 @@ impl Solver for VbdStepper {
         factorisation: false,
         deterministic_across_threads: true,
         clock: Clock::Time,
-        converges_to: "each step to implicit Euler's as iterations grow (monotone descent of the same incremental potential, Gauss-Seidel's linear rate)",
+        converges_to: "each step to implicit Euler's (BDF2's with integrator = bdf2) as iterations grow (monotone descent of the same incremental potential, Gauss-Seidel's linear rate)",
     };
 
     fn validate_params(p: &VbdParams, prefix: &str) -> Result<(), SolverError> {
@@ -1613,6 +1704,10 @@ impl Solver for VbdStepper {
 
     fn dt_mut(p: &mut VbdParams) -> Option<&mut Real> {
         Some(&mut p.dt)
+    }
+
+    fn integrator_mut(p: &mut VbdParams) -> Option<&mut Integrator> {
+        Some(&mut p.integrator)
     }
 }
 

@@ -26,6 +26,12 @@
 //!
 //! A test checks that the macro's list is [`SolverKind::ALL`], so a new solver fails the suite
 //! until its line is added here.
+//!
+//! **BDF2** ([`Integrator::Bdf2`]): every solver with an `integrator` parameter also runs the
+//! free fall (BDF2's discrete one, its first step backward Euler:
+//! `y_n = -g dt^2 (n^2 / 2 + 3/4 (1 - 3^-n))`, `v_n = -g dt n`) and the thread independence
+//! (three of its four steps BDF2, with the dynamic obstacle under contact) under BDF2; a test
+//! checks that the second list is the solvers with the parameter.
 
 use crate::common::{bits, lame};
 use fem_core::assembly::{Scratch, populate_forces};
@@ -34,8 +40,8 @@ use fem_core::math::{Real, Vec2};
 use fem_solvers::diagnostics::{EnergyScratch, energies};
 use fem_solvers::testing::beam_mesh;
 use fem_solvers::{
-    AnyStepper, Clock, Ground, Model, ObstacleMotion, Region, SolverKind, SolverParams, State,
-    Stepper,
+    AnyStepper, Clock, Ground, Integrator, Model, ObstacleMotion, Region, SolverKind, SolverParams,
+    State, Stepper,
 };
 
 /// The stepper of `kind` for `model`, with time step `dt` (ignored by load-factor solvers) and
@@ -115,26 +121,50 @@ fn run_until<E: Energy>(
     }
 }
 
-/// (a) for time-stepping solvers: exact discrete free fall.
-fn free_fall(kind: SolverKind) {
+/// `p` with integrator `integrator` (backward Euler: unchanged, whether the solver has the
+/// choice or not).
+fn with_integrator(p: &mut SolverParams, integrator: Integrator) {
+    if integrator != Integrator::BackwardEuler {
+        assert!(
+            p.set_integrator(integrator),
+            "{:?}: no integrator",
+            p.kind()
+        );
+    }
+}
+
+/// (a) for time-stepping solvers: exact discrete free fall (BDF2's, after a backward Euler
+/// first step, under `Integrator::Bdf2`: also the velocities, exact).
+fn free_fall(kind: SolverKind, integrator: Integrator) {
     let g = 9.8;
     let mut model = beam(kind, 10, 2, 1000.0);
     model.set_standard_gravity();
     let dt = 1e-3;
-    let mut stepper = build(kind, &model, dt, |_| {});
+    let mut stepper = build(kind, &model, dt, |p| with_integrator(p, integrator));
     let mut state = State::at_rest(&model);
     let mut worst: Real = 0.0;
-    for n in 1..=200u32 {
+    for n in 1..=200i32 {
         stepper.step(&model, &mut state).unwrap();
-        let n = Real::from(n);
-        let exact = -g * dt * dt * n * (n + 1.0) / 2.0;
+        let nf = Real::from(n);
+        let exact = match integrator {
+            Integrator::Bdf2 => {
+                for w in &state.v {
+                    worst = worst.max(w.x.abs()).max((w.y + g * dt * nf).abs());
+                }
+                -g * dt * dt * (nf * nf / 2.0 + 0.75 * (1.0 - Real::powi(3.0, -n)))
+            }
+            _ => -g * dt * dt * nf * (nf + 1.0) / 2.0,
+        };
         for v in 0..model.mesh().n_vertices() {
             let u = state.displacement(&model, v);
             worst = worst.max(u.x.abs()).max((u.y - exact).abs());
         }
     }
-    eprintln!("{kind}: free fall off by {worst:.3e} m after 0.2 s");
-    assert!(worst < 1e-9, "{kind}: free fall off by {worst:e} m");
+    eprintln!("{kind} {integrator}: free fall off by {worst:.3e} m after 0.2 s");
+    assert!(
+        worst < 1e-9,
+        "{kind} {integrator}: free fall off by {worst:e} m"
+    );
 }
 
 /// (a) for load-factor solvers: an anchored cantilever reaches equilibrium at `t = 1`.
@@ -221,7 +251,7 @@ fn never_non_finite(kind: SolverKind, survives: Option<&str>) {
 }
 
 /// (c) Bit-identical states on 1, 2 and 4 threads.
-fn thread_independent(kind: SolverKind) {
+fn thread_independent(kind: SolverKind, integrator: Integrator) {
     let mut model = anchored(kind, 160, 32, 1000.0);
     model.set_standard_gravity();
     if kind.capabilities().contact {
@@ -258,7 +288,7 @@ fn thread_independent(kind: SolverKind) {
             .build()
             .unwrap();
         pool.install(|| {
-            let mut stepper = build(kind, &model, 1e-4, |_| {});
+            let mut stepper = build(kind, &model, 1e-4, |p| with_integrator(p, integrator));
             let mut s = start.clone();
             for _ in 0..steps {
                 stepper.step(&model, &mut s).unwrap();
@@ -402,7 +432,7 @@ macro_rules! battery {
                 #[test]
                 fn free_fall_or_equilibrium() {
                     match KIND.capabilities().clock {
-                        Clock::Time => free_fall(KIND),
+                        Clock::Time => free_fall(KIND, Integrator::BackwardEuler),
                         Clock::LoadFactor => equilibrium(KIND),
                     }
                 }
@@ -417,7 +447,7 @@ macro_rules! battery {
 
                 #[test]
                 fn bit_identical_on_1_2_and_4_threads() {
-                    thread_independent(KIND);
+                    thread_independent(KIND, Integrator::BackwardEuler);
                 }
 
                 #[test]
@@ -472,5 +502,52 @@ fn battery_covers_every_solver() {
         BATTERY,
         SolverKind::ALL,
         "add a line for every solver of the registry to the battery"
+    );
+}
+
+/// The BDF2 lines: the solvers with an `integrator` parameter, each run through the free fall
+/// and thread independence under BDF2.
+macro_rules! bdf2_battery {
+    ($($module:ident => $kind:ident),+ $(,)?) => {
+        /// The solvers the BDF2 battery covers.
+        const BDF2_BATTERY: &[SolverKind] = &[$(SolverKind::$kind),+];
+
+        mod bdf2 {
+            use super::*;
+            $(
+                mod $module {
+                    use super::*;
+                    const KIND: SolverKind = SolverKind::$kind;
+
+                    #[test]
+                    fn free_fall() {
+                        super::super::free_fall(KIND, Integrator::Bdf2);
+                    }
+
+                    #[test]
+                    fn bit_identical_on_1_2_and_4_threads() {
+                        thread_independent(KIND, Integrator::Bdf2);
+                    }
+                }
+            )+
+        }
+    };
+}
+
+bdf2_battery! {
+    implicit => Implicit,
+    vbd => Vbd,
+    pd => Pd,
+    quasi_newton => QuasiNewton,
+}
+
+#[test]
+fn bdf2_battery_covers_every_solver_with_an_integrator() {
+    let with: Vec<SolverKind> = (SolverKind::ALL.into_iter())
+        .filter(|k| k.default_params().integrator().is_some())
+        .collect();
+    assert_eq!(
+        BDF2_BATTERY, with,
+        "add a line for every solver with an `integrator` parameter to the BDF2 battery"
     );
 }

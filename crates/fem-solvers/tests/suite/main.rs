@@ -13,6 +13,7 @@ mod determinism;
 mod explicit;
 mod grab;
 mod implicit;
+mod integrator;
 mod position_based;
 mod pressure;
 mod projective;
