@@ -194,7 +194,7 @@ fn project_psd2(p: Real, q: Real, r: Real) -> (Real, Real, Real) {
 /// (`a != b`) form a second 2x2 block whose eigenvalues are
 /// `(psi_1 - psi_2) / (s_1 - s_2)` and `(psi_1 + psi_2) / (s_1 + s_2)`. So the eigenvectors are
 /// known in closed form: rotate `dP/dF` (`d`, the energy's own exact tangent) into that basis,
-/// clamp the two 2x2 blocks in closed form ([`project_psd2`]), and rotate back. It equals
+/// clamp the two 2x2 blocks in closed form, and rotate back. It equals
 /// [`project_psd`] of the same matrix to round-off (a test checks every isotropic energy, over
 /// random and inverted `F`, to `1e-10` relative). When `d` is already PSD (a 4x4 Cholesky
 /// proves most such tangents positive definite first, for a few dozen flops), its symmetric
