@@ -47,7 +47,7 @@ use crate::rigid::BodyState;
 use crate::steppers::commit::{Kinematic, StepEnd};
 use crate::steppers::integrator::{
     History, Integrator, bdf2_body_velocity, bdf2_obstacle_targets, bdf2_obstacle_velocities,
-    bdf2_pose_target, bdf2_target, bdf2_velocity, bdf2_weight,
+    bdf2_pose_target, bdf2_velocity,
 };
 use crate::steppers::registry::{Capabilities, Clock, Solver};
 use crate::steppers::report::StepReport;
@@ -263,18 +263,8 @@ impl Stepper for ImplicitStepper {
         let bdf2 = self.history.begin(state, h, model.layout());
         self.last_bdf2 = false;
         // The inertia weight: backward Euler's `1/h^2` or BDF2's `9/(4 h^2)`.
-        let weight = if bdf2 { bdf2_weight(h) } else { 1.0 / (h * h) };
+        let (weight, _) = self.history.targets(bdf2, state, h, &mut self.target);
         external_load(model, &mut self.load);
-        if bdf2 {
-            let prev = &self.history.prev;
-            for (i, xh) in self.target.iter_mut().enumerate() {
-                *xh = bdf2_target(state.x[i], prev.x[i], state.v[i], prev.v[i], h);
-            }
-        } else {
-            for ((xh, x), v) in self.target.iter_mut().zip(&state.x).zip(&state.v) {
-                *xh = x + h * v;
-            }
-        }
         // Kinematic vertices go to their scheduled positions, both in the target and in the
         // unknowns (where they stay fixed).
         model

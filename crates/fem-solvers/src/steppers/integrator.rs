@@ -316,6 +316,30 @@ impl History {
         self.valid = true;
     }
 
+    /// The inertial targets of a step of length `h` from `state` into `target` (backward
+    /// Euler's `x + h v`, or with `bdf2` BDF2's from [`History::prev`]), and the inertia weight
+    /// `w` with its inverse `1 / w` (backward Euler's `h^2` as such, bit for bit).
+    pub(crate) fn targets(
+        &self,
+        bdf2: bool,
+        state: &State,
+        h: Real,
+        target: &mut [Vec2],
+    ) -> (Real, Real) {
+        if bdf2 {
+            let prev = &self.prev;
+            for (i, xh) in target.iter_mut().enumerate() {
+                *xh = bdf2_target(state.x[i], prev.x[i], state.v[i], prev.v[i], h);
+            }
+            (bdf2_weight(h), 1.0 / bdf2_weight(h))
+        } else {
+            for ((xh, x), v) in target.iter_mut().zip(&state.x).zip(&state.v) {
+                *xh = x + h * v;
+            }
+            (1.0 / (h * h), h * h)
+        }
+    }
+
     /// Forget the history: the next step is backward Euler.
     pub(crate) fn clear(&mut self) {
         self.valid = false;

@@ -51,7 +51,7 @@ use crate::model::state::State;
 use crate::optim::newton::{Potential, force_scale};
 use crate::optim::pd_system::{PdSystem, element_lame};
 use crate::steppers::implicit::external_load;
-use crate::steppers::integrator::{History, Integrator, bdf2_target, bdf2_weight};
+use crate::steppers::integrator::{History, Integrator, bdf2_weight};
 use crate::steppers::registry::{Capabilities, Clock, Solver};
 use crate::steppers::report::StepReport;
 use crate::steppers::vbd::{commit_positions, forbids_inversion, inversion};
@@ -450,26 +450,12 @@ impl Stepper for QuasiNewtonStepper {
         let (h, t) = (self.params.dt, state.t);
         let bdf2 = self.history.begin(state, h, model.layout());
         self.bdf2 = bdf2;
-        let w = if bdf2 { bdf2_weight(h) } else { 1.0 / (h * h) };
+        let (w, hh) = self.history.targets(bdf2, state, h, &mut self.target);
         external_load(model, &mut self.load);
         let masses = model.masses();
-        if bdf2 {
-            let (prev, hh) = (&self.history.prev, 1.0 / w);
-            for (i, xh) in self.target.iter_mut().enumerate() {
-                *xh = bdf2_target(state.x[i], prev.x[i], state.v[i], prev.v[i], h);
-                self.x[i] = *xh + self.load[i] * (hh / masses[i]);
-            }
-        } else {
-            for (i, ((xh, x), v)) in self
-                .target
-                .iter_mut()
-                .zip(&state.x)
-                .zip(&state.v)
-                .enumerate()
-            {
-                *xh = x + h * v;
-                self.x[i] = *xh + self.load[i] * (h * h / masses[i]);
-            }
+        // The start: the inertial target plus the external load's acceleration over the step.
+        for (i, xh) in self.target.iter().enumerate() {
+            self.x[i] = *xh + self.load[i] * (hh / masses[i]);
         }
         let kinematics = model.kinematics();
         kinematics.apply(t, h, t + h, &state.x, &mut self.x, &mut self.v_new);

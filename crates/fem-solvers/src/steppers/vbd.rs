@@ -152,7 +152,7 @@ use crate::steppers::commit::{Kinematic, StepEnd};
 use crate::steppers::implicit::external_load;
 use crate::steppers::integrator::{
     History, Integrator, bdf2_body_velocity, bdf2_obstacle_targets, bdf2_obstacle_velocities,
-    bdf2_pose_target, bdf2_target, bdf2_velocity, bdf2_weight,
+    bdf2_pose_target, bdf2_velocity, bdf2_weight,
 };
 use crate::steppers::registry::{Capabilities, Clock, Solver};
 use crate::steppers::report::StepReport;
@@ -1394,21 +1394,7 @@ impl Stepper for VbdStepper {
             let bdf2 = self.history.begin(state, h, model.layout());
             // The inertia weight and its inverse: backward Euler's `1/h^2`, or BDF2's
             // `9/(4 h^2)`.
-            let (w, hh) = if bdf2 {
-                (bdf2_weight(h), 1.0 / bdf2_weight(h))
-            } else {
-                (1.0 / (h * h), h * h)
-            };
-            if bdf2 {
-                let prev = &self.history.prev;
-                for (i, xh) in self.target.iter_mut().enumerate() {
-                    *xh = bdf2_target(state.x[i], prev.x[i], state.v[i], prev.v[i], h);
-                }
-            } else {
-                for ((xh, x), v) in self.target.iter_mut().zip(&state.x).zip(&state.v) {
-                    *xh = x + h * v;
-                }
-            }
+            let (w, hh) = self.history.targets(bdf2, state, h, &mut self.target);
             self.initial_guess(model, state, hh);
             let kinematics = model.kinematics();
             kinematics.apply(t, h, until, &state.x, &mut self.x, &mut self.v_new);
