@@ -10,6 +10,8 @@
 //! ([`PdStepper`], co-rotational) and L-BFGS with the Projective Dynamics matrix
 //! ([`QuasiNewtonStepper`]). These four also take second-order BDF2 steps in place of
 //! backward Euler's ([`Integrator`], [`integrator`]).
+//! Linearly implicit Euler ([`LinearImplicitStepper`]) takes one linear solve per step, with
+//! no Newton loop.
 //!
 //! The pieces, kept apart:
 //! - a [`Model`] (mesh, energy, lumped masses, boundary conditions, loads, obstacles): fixed
@@ -20,7 +22,8 @@
 //!   the static solver a load increment) and return a [`StepReport`] (min det F, inverted
 //!   elements, iterations, constraint or Newton residual, contacts): [`ExplicitStepper`],
 //!   [`PbdStepper`], [`XpbdStepper`], [`ImplicitStepper`], [`StaticStepper`], [`VbdStepper`],
-//!   [`PdStepper`], [`QuasiNewtonStepper`], all behind the [`Stepper`] trait.
+//!   [`PdStepper`], [`QuasiNewtonStepper`], [`LinearImplicitStepper`], all behind the
+//!   [`Stepper`] trait.
 //!
 //! **Where things are**: the modules are folders that are layers, each using only those
 //! listed before it: [`rigid`] (rigid bodies and the obstacles made of them), [`model`] (what
@@ -127,8 +130,8 @@ pub use contact::{ipc, pressure};
 pub use model::{bc, diagnostics, grab, limits};
 pub use optim::newton;
 pub use steppers::{
-    colour, explicit, implicit, integrator, position_based, projective, quasi_newton, registry,
-    statics, vbd,
+    colour, explicit, implicit, integrator, linear_implicit, position_based, projective,
+    quasi_newton, registry, statics, vbd,
 };
 
 pub use bc::{PrescribedMotion, Region};
@@ -140,9 +143,10 @@ pub use explicit::{ExplicitParams, ExplicitScheme, ExplicitStepper};
 pub use grab::{Grab, GrabModel};
 pub use implicit::{ImplicitParams, ImplicitStepper};
 pub use integrator::Integrator;
+pub use linear_implicit::{LinearImplicitParams, LinearImplicitStepper};
 pub use model::state::State;
 pub use model::{Model, TimeStepCheck};
-pub use newton::{NewtonParams, NewtonReport};
+pub use newton::{LinearReport, LinearSolver, NewtonParams, NewtonReport};
 pub use position_based::{
     LambdaReset, Ordering, PbdParams, PbdStepper, XpbdForm, XpbdParams, XpbdSchedule, XpbdStepper,
 };
@@ -173,10 +177,11 @@ pub mod prelude {
     pub use crate::{
         AnyStepper, BodyState, Clock, ContactParams, ExplicitParams, ExplicitScheme,
         ExplicitStepper, Grab, GrabModel, Ground, ImplicitParams, ImplicitStepper, Integrator,
-        Model, NewtonParams, ObstacleMotion, PbdParams, PbdStepper, PdParams, PdStepper,
-        PrescribedMotion, QuasiNewtonParams, QuasiNewtonStepper, Region, Solver, SolverError,
-        SolverKind, SolverParams, State, StaticParams, StaticSolver, StaticStepper, StepReport,
-        Stepper, VbdParams, VbdStepper, XpbdParams, XpbdStepper,
+        LinearImplicitParams, LinearImplicitStepper, LinearSolver, Model, NewtonParams,
+        ObstacleMotion, PbdParams, PbdStepper, PdParams, PdStepper, PrescribedMotion,
+        QuasiNewtonParams, QuasiNewtonStepper, Region, Solver, SolverError, SolverKind,
+        SolverParams, State, StaticParams, StaticSolver, StaticStepper, StepReport, Stepper,
+        VbdParams, VbdStepper, XpbdParams, XpbdStepper,
     };
     pub use fem_core::prelude::*;
 }

@@ -929,6 +929,16 @@ impl BarrierContact {
         self.tether = stiffness;
     }
 
+    /// Scale the moving obstacles' weights (a dynamic body's inertia `M / h^2`, a kinematic
+    /// one's tether) by `factor`, until the next [`BarrierContact::begin`]: the linearly
+    /// implicit step assembles its matrix divided by Rayleigh's stiffness factor and keeps
+    /// these terms out of the damping (`optim::newton::linear`).
+    pub(crate) fn scale_weights(&mut self, factor: Real) {
+        for w in self.bodies.iter_mut().flat_map(|b| b.weight.iter_mut()) {
+            *w *= factor;
+        }
+    }
+
     /// Set the obstacles' line-search direction `dq` to their targets (from their poses).
     pub(crate) fn aim_at_targets(&mut self) {
         for b in &self.bodies {

@@ -49,6 +49,11 @@ use crate::model::limits;
 use crate::rigid::{BodyState, RigidBody};
 use fem_core::clock::Stopwatch;
 
+// The linearly implicit Euler step: one linear solve of this solver's system per step.
+mod linear;
+pub use linear::{LinearReport, LinearSolver};
+pub(crate) use linear::{LinearSettings, LinearWork};
+
 /// Convergence and line-search settings of Newton's method.
 ///
 /// With the `serde` feature the fields are read under their own names (`tolerance`,
@@ -725,6 +730,20 @@ impl NewtonSolver {
         report: &mut NewtonReport,
     ) -> Result<(), SolverError> {
         let start = Stopwatch::start();
+        self.assemble(p, x, contact, (rigid, rq));
+        report.assembly_seconds += start.seconds();
+        self.factorise_assembled(report)
+    }
+
+    /// Assemble `w M + K_projected` over the free DOFs into `self.values` (`self.forces` holds
+    /// the forces of the last gradient, at `x`).
+    fn assemble<E: Energy>(
+        &mut self,
+        p: &Potential<'_, E>,
+        x: &[Vec2],
+        contact: Option<(&BarrierContact, &[[Real; 3]])>,
+        (rigid, rq): (&RigidUnknowns, &[[Real; 3]]),
+    ) {
         populate_stiffness(
             p.mesh,
             p.energy,
@@ -781,13 +800,17 @@ impl NewtonSolver {
             );
             self.values = values;
         }
+    }
+
+    /// Factorise the assembled matrix, retried with a growing diagonal shift when it is not
+    /// numerically positive definite.
+    fn factorise_assembled(&mut self, report: &mut NewtonReport) -> Result<(), SolverError> {
         let scale = self
             .diag
             .iter()
             .map(|&s| self.values[s].abs())
             .fold(0.0, Real::max)
             .max(Real::MIN_POSITIVE);
-        report.assembly_seconds += start.seconds();
         let start = Stopwatch::start();
         let mut shift = 0.0;
         for attempt in 0..8 {

@@ -11,7 +11,8 @@
 //! - [`statics`]: quasi-static equilibrium over a load factor;
 //! - [`vbd`]: Vertex Block Descent;
 //! - [`projective`]: Projective Dynamics (co-rotational);
-//! - [`quasi_newton`]: L-BFGS with the Projective Dynamics matrix.
+//! - [`quasi_newton`]: L-BFGS with the Projective Dynamics matrix;
+//! - [`linear_implicit`]: linearly implicit Euler (one linear solve per step).
 //!
 //! [`colour`] has the triangle and vertex colourings the Gauss-Seidel solvers run in parallel.
 //! A stepper reads the [`crate::model`], resolves contact through [`crate::contact`] and
@@ -32,6 +33,7 @@ pub(crate) mod commit;
 pub mod explicit;
 pub mod implicit;
 pub mod integrator;
+pub mod linear_implicit;
 pub mod position_based;
 pub mod projective;
 pub mod quasi_newton;

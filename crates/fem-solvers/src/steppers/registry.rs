@@ -355,6 +355,7 @@ registry! {
     Vbd => crate::steppers::vbd::VbdStepper,
     Pd => crate::steppers::projective::PdStepper,
     QuasiNewton => crate::steppers::quasi_newton::QuasiNewtonStepper,
+    LinearImplicit => crate::steppers::linear_implicit::LinearImplicitStepper,
 }
 
 impl Default for SolverKind {
@@ -446,7 +447,7 @@ mod tests {
         assert_eq!(SolverKind::default(), SolverKind::Explicit);
         assert_eq!(
             "rk4".parse::<SolverKind>().unwrap_err().to_string(),
-            "unknown solver `rk4` (expected one of: explicit, pbd, xpbd, implicit, static, vbd, pd, quasi-newton)"
+            "unknown solver `rk4` (expected one of: explicit, pbd, xpbd, implicit, static, vbd, pd, quasi-newton, linear-implicit)"
         );
     }
 

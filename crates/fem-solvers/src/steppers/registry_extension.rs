@@ -129,6 +129,7 @@ mod extended {
         Vbd => crate::steppers::vbd::VbdStepper,
         Pd => crate::steppers::projective::PdStepper,
         QuasiNewton => crate::steppers::quasi_newton::QuasiNewtonStepper,
+        LinearImplicit => crate::steppers::linear_implicit::LinearImplicitStepper,
         TwoHalves => crate::steppers::registry_extension::TwoHalves,
     }
 }

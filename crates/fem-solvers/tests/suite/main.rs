@@ -1,7 +1,7 @@
 //! The integration test suite of fem-solvers, one binary with a module per topic (one link
 //! instead of many): the stepper battery over every registered solver, explicit stepping,
-//! PBD/XPBD, implicit Euler, statics, contact, thread determinism of the other orderings, and
-//! the registry as scenes use it; `docs/solvers.md` kept true.
+//! PBD/XPBD, implicit Euler, linearly implicit Euler, statics, contact, thread determinism of
+//! the other orderings, and the registry as scenes use it; `docs/solvers.md` kept true.
 
 mod barrier_contact;
 mod battery;
@@ -14,6 +14,7 @@ mod explicit;
 mod grab;
 mod implicit;
 mod integrator;
+mod linear_implicit;
 mod position_based;
 mod pressure;
 mod projective;

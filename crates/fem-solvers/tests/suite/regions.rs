@@ -91,6 +91,7 @@ fn strains(kind: SolverKind, model: &Model<AnyEnergy>) -> (Real, Real) {
         // Converged steps (Newton's tolerance alone, no velocity tolerance): the analytic
         // strain is the converged equilibrium's.
         SolverParams::Implicit(x) => (x.damping, x.velocity_tolerance) = (damping, 0.0),
+        SolverParams::LinearImplicit(x) => x.damping = damping,
         SolverParams::Static(_) => {}
         SolverParams::Pbd(x) => (x.iterations, x.damping) = (50, damping),
         SolverParams::Xpbd(x) => (x.substeps, x.iterations, x.damping) = (10, 20, damping),

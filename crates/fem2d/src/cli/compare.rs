@@ -43,8 +43,8 @@ pub struct CompareArgs {
         default_value = "stvk,corotational,neo-hookean"
     )]
     pub energies: Vec<String>,
-    /// Solvers (comma-separated): explicit, pbd, xpbd, implicit, static, vbd, pd, quasi-newton
-    /// (default: the paper's frameworks, explicit, pbd and xpbd). Solvers without contact
+    /// Solvers (comma-separated): explicit, pbd, xpbd, implicit, static, vbd, pd, quasi-newton,
+    /// linear-implicit (default: the paper's frameworks, explicit, pbd and xpbd). Solvers without contact
     /// (pd, quasi-newton; see docs/solvers.md) give an error row on a scene with a ground or
     /// obstacles.
     #[arg(long, value_delimiter = ',')]

@@ -36,8 +36,8 @@ pub struct RunArgs {
     /// Energy: stvk, corotational, neo-hookean, stable-neo-hookean, linear (default: the scene's).
     #[arg(long)]
     pub energy: Option<String>,
-    /// Solver: explicit, pbd, xpbd, implicit, static, vbd, pd, quasi-newton (default: the
-    /// scene's). `static` solves for
+    /// Solver: explicit, pbd, xpbd, implicit, static, vbd, pd, quasi-newton, linear-implicit
+    /// (default: the scene's). `static` solves for
     /// equilibrium in `solver.load_steps` load increments (dt and steps do not apply); see
     /// docs/solvers.md.
     #[arg(long)]
