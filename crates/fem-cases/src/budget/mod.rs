@@ -5,9 +5,12 @@
 //! `1 / fps`) and a physics budget per frame (milliseconds on one thread), every framework
 //! climbs ladders of settings from the cheapest up ([`Framework::ladder`]): fixed counts
 //! (substeps for explicit; substeps x iterations for PBD and XPBD, in XPBD's two schedules;
-//! sweeps for VBD; iterations for Projective Dynamics and quasi-Newton; Newton's tolerance for
-//! implicit Euler) and, for the iterative solvers, residual tolerances (VBD, XPBD, PD and
-//! quasi-Newton stop when their residual falls below the tolerance, at most 200 iterations).
+//! sweeps for VBD; iterations for Projective Dynamics and quasi-Newton; CG iterations, then the
+//! Cholesky preconditioner's refresh and the direct solve, for linearly implicit Euler; the
+//! velocity tolerance, then Newton's tolerance, for implicit Euler) and, for the iterative
+//! solvers, residual tolerances (VBD, XPBD, PD and quasi-Newton stop when their residual falls
+//! below the tolerance, at most 200 iterations). The solvers with a choice of time integrator
+//! (implicit Euler, VBD, PD, quasi-Newton) climb their fixed ladder again under BDF2.
 //! Each rung runs the scene's whole duration on one thread; its stepping time per frame, the
 //! iterations it actually used and the largest residual its steps ended with are reported.
 //!
@@ -73,6 +76,9 @@ pub enum Framework {
     Pd,
     /// Quasi-Newton (L-BFGS with the PD matrix), iterations.
     QuasiNewton,
+    /// Linearly implicit Euler (one linear solve a step): CG iterations, then the Cholesky
+    /// preconditioner's refresh, then the direct solve.
+    LinearImplicit,
     /// Implicit Euler by Newton, tolerance.
     Implicit,
 }
@@ -88,7 +94,7 @@ pub const TOLERANCE_MAX_ITERATIONS: u64 = 200;
 
 impl Framework {
     /// Every framework, in table order.
-    pub const ALL: [Framework; 8] = [
+    pub const ALL: [Framework; 9] = [
         Framework::Explicit,
         Framework::Pbd,
         Framework::Xpbd,
@@ -96,6 +102,7 @@ impl Framework {
         Framework::Vbd,
         Framework::Pd,
         Framework::QuasiNewton,
+        Framework::LinearImplicit,
         Framework::Implicit,
     ];
 
@@ -116,6 +123,7 @@ impl Framework {
             Framework::Vbd => SolverKind::Vbd,
             Framework::Pd => SolverKind::Pd,
             Framework::QuasiNewton => SolverKind::QuasiNewton,
+            Framework::LinearImplicit => SolverKind::LinearImplicit,
             Framework::Implicit => SolverKind::Implicit,
         }
     }
@@ -135,8 +143,51 @@ impl Framework {
     }
 
     /// Its settings from the cheapest up: the fixed-count ladder (group 0), then for the
-    /// iterative solvers the residual-tolerance ladder (group 1), loosest first.
+    /// iterative solvers the residual-tolerance ladder (group 1), loosest first, then for the
+    /// solvers with a choice of time integrator a BDF2 ladder (group 2, [`BDF2_GROUP`]).
+    /// Linearly implicit Euler climbs CG-Jacobi's iterations (group 0), then the Cholesky
+    /// preconditioner's refresh period down to the direct solve (group 1).
     pub fn ladder(self) -> Vec<Setting> {
+        let mut l = self.backward_euler_ladder();
+        if self.solver().default_params().integrator().is_some() {
+            l.extend(self.bdf2_ladder());
+        }
+        l
+    }
+
+    /// The BDF2 rungs (`integrator = "bdf2"`): implicit Euler's velocity tolerances, the
+    /// iterative solvers' iteration counts from 2 to 100.
+    fn bdf2_ladder(self) -> Vec<Setting> {
+        let bdf2 = ("integrator".to_owned(), toml::Value::String("bdf2".into()));
+        let base: Vec<Setting> = match self {
+            Framework::Implicit => self
+                .backward_euler_ladder()
+                .into_iter()
+                .filter(|s| s.group == 0)
+                .collect(),
+            _ => self
+                .backward_euler_ladder()
+                .into_iter()
+                .filter(|s| {
+                    s.group == 0
+                        && [2, 5, 10, 20, 50, 100]
+                            .map(|n| format!("{n} iterations"))
+                            .contains(&s.label)
+                })
+                .collect(),
+        };
+        base.into_iter()
+            .map(|mut s| {
+                s.label = format!("bdf2, {}", s.label);
+                s.values.push(bdf2.clone());
+                s.group = BDF2_GROUP;
+                s
+            })
+            .collect()
+    }
+
+    /// The ladders of backward Euler (every framework's time stepping but BDF2's rungs).
+    fn backward_euler_ladder(self) -> Vec<Setting> {
         let int = |n: u64| toml::Value::Integer(n as i64);
         let sweeps = [1u64, 2, 3, 5, 10, 20, 50, 100, 200];
         let fixed = |label: String, values: Vec<(String, toml::Value)>| Setting {
@@ -232,6 +283,39 @@ impl Framework {
                 l.extend(tolerances(Vec::new(), &[1e-2, 1e-4, 1e-6]));
                 l
             }
+            // CG with Jacobi's preconditioner for a fixed count (its tolerance 0: every
+            // iteration runs), then CG preconditioned by a Cholesky factor refreshed every
+            // `refresh` steps (to its default tolerance 1e-5), then the direct solve.
+            Framework::LinearImplicit => [10u64, 25, 50, 100, 200]
+                .iter()
+                .map(|&n| {
+                    fixed(
+                        format!("cg-jacobi, {n} iterations"),
+                        vec![
+                            ("linear_solver".into(), "cg-jacobi".into()),
+                            ("cg_iterations".into(), int(n)),
+                            ("cg_tolerance".into(), toml::Value::Float(0.0)),
+                        ],
+                    )
+                })
+                .chain([30u64, 10, 3].iter().map(|&r| Setting {
+                    group: 1,
+                    ..fixed(
+                        format!("cg-cholesky, refresh {r}"),
+                        vec![
+                            ("linear_solver".into(), "cg-cholesky".into()),
+                            ("refresh".into(), int(r)),
+                        ],
+                    )
+                }))
+                .chain(std::iter::once(Setting {
+                    group: 1,
+                    ..fixed(
+                        "direct".into(),
+                        vec![("linear_solver".into(), "direct".into())],
+                    )
+                }))
+                .collect(),
             // Newton's real-time stopping rule (a full step below the velocity tolerance times
             // the step, Newton's tolerance 1e-8 behind it), then its residual tolerance alone.
             Framework::Implicit => [1e-2, 1e-3, 1e-4]
@@ -258,6 +342,9 @@ impl Framework {
     }
 }
 
+/// The ladder group of the BDF2 rungs ([`Framework::ladder`]).
+pub const BDF2_GROUP: u8 = 2;
+
 /// One rung of a ladder: solver parameters and how many steps make a frame.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Setting {
@@ -269,8 +356,10 @@ pub struct Setting {
     pub steps_per_frame: u64,
     /// The residual tolerance of a tolerance rung (and implicit Euler's Newton tolerance).
     pub tolerance: Option<f64>,
-    /// The ladder it belongs to: 0 fixed counts, 1 residual tolerances. A ladder stops once a
-    /// rung costs twice the budget; the next ladder starts from its cheapest rung again.
+    /// The ladder it belongs to: 0 fixed counts, 1 residual tolerances (linearly implicit
+    /// Euler: the Cholesky-preconditioned and direct solves), 2 BDF2 ([`BDF2_GROUP`]). A
+    /// ladder stops once a rung costs twice the budget; the next ladder starts from its
+    /// cheapest rung again.
     pub group: u8,
 }
 

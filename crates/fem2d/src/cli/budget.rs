@@ -33,7 +33,7 @@ pub struct BudgetArgs {
     #[arg(long, value_delimiter = ',')]
     pub energies: Vec<String>,
     /// Frameworks (comma-separated; default all): explicit, pbd, xpbd, xpbd-small-steps, vbd,
-    /// pd, quasi-newton, implicit.
+    /// pd, quasi-newton, linear-implicit, implicit.
     #[arg(long, value_delimiter = ',')]
     pub frameworks: Vec<String>,
     /// The quantity to rank by: position, stress, stress-impact, pressure, pressure-impact
