@@ -203,7 +203,8 @@ fn check_against_native(site: &Path) -> Result<(), String> {
         ]);
     }
     // Case D at a headset's frame step under every solver that handles contact (barrier
-    // contact in implicit, static and VBD), so contact is bit-identical in WebAssembly too.
+    // contact in implicit, static, VBD and quasi-Newton), so contact is bit-identical in
+    // WebAssembly too.
     let contact = native(&["--list-contact-solvers".to_owned()])?;
     for solver in contact.split_whitespace() {
         checks.push(vec![

@@ -172,8 +172,39 @@ pub(crate) struct BarrierContact {
     corners: Vec<(Vec2, Vec2)>,
     fill: Vec<u32>,
     still: Vec<Vec2>,
-    /// The points' Jacobians of [`BarrierContact::gradient`].
-    jac: [Vec<(Dof, Vec2)>; 3],
+}
+
+/// A point's Jacobian: the degrees of freedom it moves with and `d point / d dof` for each, at
+/// most three (a rotating corner's), held inline so that evaluating the derivatives allocates
+/// nothing.
+#[derive(Clone, Copy, Debug)]
+struct Jacobian {
+    len: usize,
+    entries: [(Dof, Vec2); 3],
+}
+
+impl Default for Jacobian {
+    fn default() -> Self {
+        Jacobian {
+            len: 0,
+            entries: [(Dof::Extra(0), Vec2::zeros()); 3],
+        }
+    }
+}
+
+impl Jacobian {
+    fn clear(&mut self) {
+        self.len = 0;
+    }
+
+    fn push(&mut self, entry: (Dof, Vec2)) {
+        self.entries[self.len] = entry;
+        self.len += 1;
+    }
+
+    fn entries(&self) -> &[(Dof, Vec2)] {
+        &self.entries[..self.len]
+    }
 }
 
 /// `R(theta) l` and its derivative `perp(R l)`.
@@ -291,7 +322,6 @@ impl BarrierContact {
             corners: Vec::new(),
             fill: Vec::new(),
             still: Vec::new(),
-            jac: Default::default(),
         }
     }
 
@@ -624,7 +654,7 @@ impl BarrierContact {
 
     /// The degrees of freedom of a point and `d point / d dof` for each; second derivative
     /// of a corner in its angle (`-R l`).
-    fn jacobian(&self, pt: Point, q: &[[Real; 3]], out: &mut Vec<(Dof, Vec2)>) -> Vec2 {
+    fn jacobian(&self, pt: Point, q: &[[Real; 3]], out: &mut Jacobian) -> Vec2 {
         out.clear();
         match pt {
             Point::Soft(v) => {
@@ -662,7 +692,7 @@ impl BarrierContact {
         h: Option<&Hess6>,
         grad: &mut dyn FnMut(Dof, Real),
         hess: &mut dyn FnMut(Dof, Dof, Real),
-        jac: &mut [Vec<(Dof, Vec2)>; 3],
+        jac: &mut [Jacobian; 3],
     ) {
         let mut curv = [Vec2::zeros(); 3];
         for (k, pt) in [pair.p, pair.a, pair.b].into_iter().enumerate() {
@@ -670,7 +700,7 @@ impl BarrierContact {
         }
         for k in 0..3 {
             let gk = Vec2::new(g[2 * k], g[2 * k + 1]);
-            for &(dof, col) in &jac[k] {
+            for &(dof, col) in jac[k].entries() {
                 grad(dof, gk.dot(&col));
             }
         }
@@ -680,8 +710,8 @@ impl BarrierContact {
         for i in 0..3 {
             for j in 0..3 {
                 let block = h.fixed_view::<2, 2>(2 * i, 2 * j);
-                for &(di, ci) in &jac[i] {
-                    for &(dj, cj) in &jac[j] {
+                for &(di, ci) in jac[i].entries() {
+                    for &(dj, cj) in jac[j].entries() {
                         let v = ci.dot(&(block * cj));
                         if v != 0.0 {
                             hess(di, dj, v);
@@ -694,7 +724,7 @@ impl BarrierContact {
                 let gi = Vec2::new(g[2 * i], g[2 * i + 1]);
                 let c = gi.dot(&curv[i]);
                 if c > 0.0 {
-                    let theta = jac[i].last().expect("rotating corner").0;
+                    let theta = jac[i].entries().last().expect("rotating corner").0;
                     hess(theta, theta, c);
                 }
             }
@@ -702,7 +732,8 @@ impl BarrierContact {
     }
 
     /// Add the gradient (and, with `hess`, the projected Hessian) of the contact energy at
-    /// `(x, q)` through the callbacks.
+    /// `(x, q)` through the callbacks. Allocates nothing (the points' Jacobians are held
+    /// inline).
     pub(crate) fn derivatives(
         &self,
         x: &[Vec2],
@@ -710,17 +741,16 @@ impl BarrierContact {
         grad: &mut dyn FnMut(Dof, Real),
         hess: Option<&mut dyn FnMut(Dof, Dof, Real)>,
     ) {
-        let mut jac: [Vec<(Dof, Vec2)>; 3] = Default::default();
+        let mut jac: [Jacobian; 3] = Default::default();
         self.derivatives_with(x, q, grad, hess, &mut jac);
     }
 
     /// The gradient of the contact energy at `(x, self.q)` through `grad`, as
-    /// [`BarrierContact::derivatives`] gives it, without allocating (the points' Jacobians
-    /// reuse a buffer): the residual test of the solvers that iterate.
+    /// [`BarrierContact::derivatives`] gives it: the residual test of the solvers that
+    /// iterate.
     pub(crate) fn gradient(&mut self, x: &[Vec2], grad: &mut dyn FnMut(Dof, Real)) {
-        let mut jac = std::mem::take(&mut self.jac);
+        let mut jac: [Jacobian; 3] = Default::default();
         self.derivatives_with(x, &self.q, grad, None, &mut jac);
-        self.jac = jac;
     }
 
     /// [`BarrierContact::derivatives`] with the points' Jacobians in `jac`.
@@ -730,7 +760,7 @@ impl BarrierContact {
         q: &[[Real; 3]],
         grad: &mut dyn FnMut(Dof, Real),
         hess: Option<&mut dyn FnMut(Dof, Dof, Real)>,
-        jac: &mut [Vec<(Dof, Vec2)>; 3],
+        jac: &mut [Jacobian; 3],
     ) {
         let mut noop = |_: Dof, _: Dof, _: Real| {};
         let want_h = hess.is_some();
@@ -937,6 +967,17 @@ impl BarrierContact {
         for w in self.bodies.iter_mut().flat_map(|b| b.weight.iter_mut()) {
             *w *= factor;
         }
+    }
+
+    /// Each extra unknown, in their order: its obstacle, its component of the obstacle's pose
+    /// (0 and 1 the centroid's, 2 the angle) and its weight on the diagonal of the Hessian in
+    /// the current solve (a dynamic body's inertia `M w`, `I w`, a kinematic one's tether):
+    /// the quasi-Newton solver's initial Hessian for these unknowns.
+    pub(crate) fn extra_unknowns(&self) -> impl Iterator<Item = (usize, usize, Real)> + '_ {
+        self.bodies.iter().flat_map(|b| {
+            let n = if b.rotates { 3 } else { 2 };
+            (0..n).map(move |k| (b.obstacle, k, b.weight[k]))
+        })
     }
 
     /// Set the obstacles' line-search direction `dq` to their targets (from their poses).

@@ -145,11 +145,11 @@ pub(crate) struct RigidUnknowns {
     /// Free index of the first body's first unknown.
     first: usize,
     /// The current poses `(p_x, p_y, theta)`.
-    q: Vec<[Real; 3]>,
+    pub(crate) q: Vec<[Real; 3]>,
     /// The inertial targets (implicit Euler: `q + h q'`; BDF2: [`RigidUnknowns::begin_towards`]).
     target: Vec<[Real; 3]>,
     /// The poses at the start of the step (the fallback start).
-    start: Vec<[Real; 3]>,
+    pub(crate) start: Vec<[Real; 3]>,
     trial: Vec<[Real; 3]>,
 }
 
@@ -230,7 +230,7 @@ impl RigidUnknowns {
     }
 
     /// Place the slaved vertices on poses `q`.
-    fn place(&self, q: &[[Real; 3]], x: &mut [Vec2]) {
+    pub(crate) fn place(&self, q: &[[Real; 3]], x: &mut [Vec2]) {
         for (body, q) in self.bodies.iter().zip(q) {
             let (s, c) = fem_core::math::sin_cos(q[2]);
             for (&v, r) in body.vertices.iter().zip(&body.offsets) {
@@ -245,7 +245,7 @@ impl RigidUnknowns {
     }
 
     /// The body inertia `w/2 sum (M |p - p_hat|^2 + I (theta - theta_hat)^2)` at poses `q`.
-    fn inertia(&self, weight: Real, q: &[[Real; 3]]) -> Real {
+    pub(crate) fn inertia(&self, weight: Real, q: &[[Real; 3]]) -> Real {
         if weight == 0.0 {
             return 0.0;
         }
@@ -616,6 +616,19 @@ impl NewtonSolver {
         self.n_free
     }
 
+    /// The gradient of the last [`NewtonSolver::gradient`] over the free degrees of freedom:
+    /// the soft ones (`2 k + d` for the `k`-th free vertex), the contact's extra ones, the
+    /// free rigid bodies' (three each).
+    pub(crate) fn last_gradient(&self) -> &[Real] {
+        &self.gradient
+    }
+
+    /// The 2-norm of the elastic forces on the free degrees of freedom (a free body's: on its
+    /// vertices) at the last [`NewtonSolver::gradient`], N.
+    pub(crate) fn elastic_force(&self) -> Real {
+        self.elastic_force
+    }
+
     /// The free index of a contact term's degree of freedom (`None`: held).
     #[inline]
     fn free_of(&self, d: Dof) -> Option<usize> {
@@ -638,9 +651,9 @@ impl NewtonSolver {
     }
 
     /// Gradient of the potential (with the contact term at the poses `q`, when there is one,
-    /// and the free rigid bodies at poses `rq`) over the free DOFs into `self.gradient`;
-    /// returns its norm.
-    fn gradient<E: Energy>(
+    /// and the free rigid bodies at poses `rq`) over the free DOFs into `self.gradient`
+    /// ([`NewtonSolver::last_gradient`]); returns its norm.
+    pub(crate) fn gradient<E: Energy>(
         &mut self,
         p: &Potential<'_, E>,
         x: &[Vec2],

@@ -43,7 +43,8 @@
 //!
 //! Other energies are not sums of projective terms and are refused at construction (the
 //! quasi-Newton solver runs them with this matrix as its initial Hessian). Contact is not
-//! handled yet (refused, as for implicit Euler). The step's residual is the largest position
+//! handled (refused, naming the steppers that handle it, quasi-Newton among them, with this
+//! matrix in its initial Hessian). The step's residual is the largest position
 //! change of its last iteration, m (with a positive tolerance: the gradient norm above, N).
 //!
 //! **BDF2** (`integrator = "bdf2"`, [`crate::integrator`]): the iterations minimise BDF2's
@@ -206,7 +207,7 @@ impl PdStepper {
             return Err(SolverError::invalid(
                 "pd.contact",
                 "ground or obstacles",
-                "contact is handled by the explicit, pbd, xpbd, implicit, static and vbd steppers",
+                "contact is handled by the explicit, pbd, xpbd, implicit, static, vbd, quasi-newton and linear-implicit steppers",
             ));
         }
         let mesh = model.mesh();

@@ -40,7 +40,7 @@ fn run_vbd<E: Energy>(model: &Model<E>, t_end: Real) -> (State, VbdStepper, Real
     run_with(model, s, t_end, |s| s.min_distance())
 }
 
-fn run_with<E: Energy, S: Stepper>(
+pub(crate) fn run_with<E: Energy, S: Stepper>(
     model: &Model<E>,
     mut s: S,
     t_end: Real,
@@ -152,7 +152,7 @@ fn static_slab_on_strip_reaches_an_equilibrium_carried_by_the_contact_forces() {
 /// and a sharp wedge (4 cm wide at its top, 10 cm tall) whose tip starts 1 cm above the middle
 /// of the left top edge and moves down at 5 cm/s: no soft vertex ever lies inside the wedge,
 /// so only corner-edge contact can stop it.
-fn coarse_strip_and_wedge() -> Model<NeoHookean> {
+pub(crate) fn coarse_strip_and_wedge() -> Model<NeoHookean> {
     let mesh = rectangle(&RectangleParams::new(1.0, 0.2, 2, 1)).unwrap();
     let mut m = Model::with_total_mass(mesh, NeoHookean::new(lame(1e4)).unwrap(), 1.0).unwrap();
     m.pin(&Region::in_box(Vec2::new(0.0, 0.0), Vec2::new(1.0, 0.0)))
@@ -175,7 +175,7 @@ fn coarse_strip_and_wedge() -> Model<NeoHookean> {
 }
 
 /// The wedge's tip and the height of the soft top edge from (0, 0.2) to (0.5, 0.2) under it.
-fn tip_and_edge_under<E: Energy>(model: &Model<E>, state: &State) -> (Vec2, Real) {
+pub(crate) fn tip_and_edge_under<E: Energy>(model: &Model<E>, state: &State) -> (Vec2, Real) {
     let tip = model.obstacles()[0].world_polygon(&state.bodies[0])[0];
     let at = |p: Vec2| {
         let v = (0..state.x.len())

@@ -272,7 +272,11 @@ fn beam_with_a_rigid_block() -> Model<AnyEnergy> {
 #[test]
 fn order_of_accuracy_with_a_free_rigid_block() {
     let (model, start) = smooth_problem_with_a_rigid_block();
-    for kind in [SolverKind::Implicit, SolverKind::Vbd] {
+    for kind in [
+        SolverKind::Implicit,
+        SolverKind::Vbd,
+        SolverKind::QuasiNewton,
+    ] {
         check_order(kind, (&model, &start));
     }
 }
@@ -369,9 +373,15 @@ fn bdf2_free_fall_of_rigid_bodies_and_obstacles() {
         )
         .unwrap();
     assert!(model.rigid_bodies()[0].is_free());
-    for kind in [SolverKind::Implicit, SolverKind::Vbd] {
+    for kind in [
+        SolverKind::Implicit,
+        SolverKind::Vbd,
+        SolverKind::QuasiNewton,
+    ] {
         // VBD's sweeps start the block at its pose (with contact) and converge to it
-        // geometrically: 10 sweeps leave 5e-11 m.
+        // geometrically: 10 sweeps leave 5e-11 m. Quasi-Newton starts the block where its
+        // load takes it and reaches the obstacle's pose in one iteration (its initial Hessian
+        // is the obstacle's inertia).
         let mut s = build(kind, &model, dt, Integrator::Bdf2, |p| {
             if let SolverParams::Vbd(p) = p {
                 p.iterations = 100;
@@ -466,7 +476,7 @@ fn bdf2_dissipates_less_than_backward_euler_and_stays_bounded() {
     }
 }
 
-/// Run `kind` under BDF2 (damping 2/s; VBD with `sweeps` sweeps) at 90 Hz for `t_end` s with
+/// Run `kind` under BDF2 (damping 2/s; VBD with `sweeps` sweeps, quasi-Newton with `sweeps` iterations) at 90 Hz for `t_end` s with
 /// barrier contact: apart after every step (the oracle of `testing`), the contacts' gaps
 /// positive, every state finite, and kinetic plus elastic plus gravitational energy never
 /// above its start.
@@ -480,6 +490,10 @@ fn contact_run<E: Energy>(
     let mut s = build(kind, model, dt, Integrator::Bdf2, |p| match p {
         SolverParams::Implicit(p) => p.damping = 2.0,
         SolverParams::Vbd(p) => {
+            p.damping = 2.0;
+            p.iterations = sweeps;
+        }
+        SolverParams::QuasiNewton(p) => {
             p.damping = 2.0;
             p.iterations = sweeps;
         }
@@ -510,7 +524,8 @@ fn contact_run<E: Energy>(
     (state, s)
 }
 
-/// BDF2 with barrier contact at 90 Hz, under implicit Euler's Newton and VBD: the block
+/// BDF2 with barrier contact at 90 Hz, under implicit Euler's Newton, VBD and quasi-Newton
+/// (300 iterations, enough to converge at rest; see `quasi_newton_coupled.rs`): the block
 /// dropped on the ground and the slab dropped on the strip never penetrate, stay finite with
 /// bounded energy, and come to rest carrying their weight (within 1 %, as under backward
 /// Euler). VBD drops the block with 100 sweeps (see the next test for 20) and the slab with 20:
@@ -519,9 +534,11 @@ fn contact_run<E: Energy>(
 /// integrator).
 #[test]
 fn bdf2_with_barrier_contact_is_stable_and_comes_to_rest() {
-    for (kind, block_sweeps, slab_sweeps) in
-        [(SolverKind::Implicit, 0, 0), (SolverKind::Vbd, 100, 20)]
-    {
+    for (kind, block_sweeps, slab_sweeps) in [
+        (SolverKind::Implicit, 0, 0),
+        (SolverKind::Vbd, 100, 20),
+        (SolverKind::QuasiNewton, 300, 300),
+    ] {
         let model = block();
         let (state, s) = contact_run(kind, block_sweeps, &model, 3.0);
         let speed = state.v.iter().map(|v| v.norm()).fold(0.0, Real::max);

@@ -19,6 +19,7 @@ mod position_based;
 mod pressure;
 mod projective;
 mod quasi_newton;
+mod quasi_newton_coupled;
 mod regions;
 mod registry;
 mod rigid;

@@ -37,7 +37,7 @@ fn corotational(e: Real, nu: Real) -> AnyEnergy {
     EnergyKind::Corotational.build(lame).unwrap()
 }
 
-fn neo_hookean(e: Real, nu: Real) -> AnyEnergy {
+pub(crate) fn neo_hookean(e: Real, nu: Real) -> AnyEnergy {
     let lame = Material::new(e, nu, 1.0)
         .unwrap()
         .lame(PlaneModel::PlaneStrain);
@@ -46,7 +46,7 @@ fn neo_hookean(e: Real, nu: Real) -> AnyEnergy {
 
 /// A model of `mesh` whose triangles with `inside(centroid)` form region 1, both regions of
 /// `energy` and density [`DENSITY`]; region 1 rigid when `rigid`.
-fn with_region(
+pub(crate) fn with_region(
     mesh: fem_core::mesh::Mesh,
     energy: AnyEnergy,
     inside: impl Fn(Vec2) -> bool,
@@ -160,7 +160,7 @@ fn bar_at_rest(kind: SolverKind, model: &Model<AnyEnergy>) -> State {
 }
 
 /// The largest change of a distance between two vertices of body `b`, m.
-fn rigidity_error<E: Energy>(model: &Model<E>, state: &State, b: usize) -> Real {
+pub(crate) fn rigidity_error<E: Energy>(model: &Model<E>, state: &State, b: usize) -> Real {
     let body = &model.rigid_bodies()[b];
     let x0 = model.mesh().vertices();
     let mut worst: Real = 0.0;
@@ -271,6 +271,9 @@ fn momentum_tolerance(kind: SolverKind) -> (Real, Real) {
         // Linearly implicit Euler's one linear solve a step balances the internal forces to
         // round-off (measured 9.0e-15; angular 1.7e-3, implicit Euler's).
         SolverKind::Implicit | SolverKind::Vbd | SolverKind::LinearImplicit => (1e-9, 5e-3),
+        // Quasi-Newton's steps stop at Newton's tolerance (measured 5.2e-15; angular 1.7e-3,
+        // implicit Euler's).
+        SolverKind::QuasiNewton => (1e-9, 5e-3),
         // PBD and XPBD: every correction is mass-weighted and a constraint's gradients sum to
         // zero, so linear momentum keeps to round-off (measured 4.5e-13 and 2.1e-13); velocities
         // from positions drift angular momentum by O(h), like implicit Euler (measured 1.7e-3).
@@ -490,7 +493,7 @@ fn make_rigid_checks_its_input() {
 /// A cantilever (2 m x 0.4 m, 20 x 4 cells, left end pinned,
 /// Neo-Hookean E = 1e4 Pa) with a rigid block in its outer half: free, hanging from the soft
 /// root.
-fn cantilever_with_a_rigid_block() -> Model<AnyEnergy> {
+pub(crate) fn cantilever_with_a_rigid_block() -> Model<AnyEnergy> {
     let mesh = rectangle(&RectangleParams::new(2.0, 0.4, 20, 4)).unwrap();
     let mut model = with_region(
         mesh,
@@ -524,6 +527,9 @@ fn rollout_tolerance(kind: SolverKind) -> Real {
         // One Newton iteration a step, off implicit Euler's solution by the square of the
         // step's motion (measured 2.0e-5).
         SolverKind::LinearImplicit => 1e-4,
+        // At most 10 L-BFGS iterations a step, stopped at Newton's tolerance 1e-8 (measured
+        // 7.1e-11).
+        SolverKind::QuasiNewton => 1e-8,
         _ => 0.0,
     }
 }

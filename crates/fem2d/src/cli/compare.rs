@@ -44,8 +44,8 @@ pub struct CompareArgs {
     )]
     pub energies: Vec<String>,
     /// Solvers (comma-separated): explicit, pbd, xpbd, implicit, static, vbd, pd, quasi-newton,
-    /// linear-implicit (default: the paper's frameworks, explicit, pbd and xpbd). Solvers without contact
-    /// (pd, quasi-newton; see docs/solvers.md) give an error row on a scene with a ground or
+    /// linear-implicit (default: the paper's frameworks, explicit, pbd and xpbd). A solver
+    /// without contact (pd; see docs/solvers.md) gives an error row on a scene with a ground or
     /// obstacles.
     #[arg(long, value_delimiter = ',')]
     pub solvers: Vec<String>,

@@ -291,10 +291,6 @@ fn contact_and_bad_newton_settings_are_one_line_errors() {
             vec!["built-in case-d", "solver.kind = pd", "contact"],
         ),
         (
-            vec!["case-d", "--solver", "quasi-newton"],
-            vec!["built-in case-d", "solver.kind = quasi-newton", "contact"],
-        ),
-        (
             vec![
                 "case-a",
                 "--solver",

@@ -509,8 +509,8 @@ fn bad_input_is_one_error_line_and_no_output() {
             vec!["energy", "`foo`", "stvk"],
         ),
         (
-            vec!["case-d", "--solver", "quasi-newton"],
-            vec!["built-in case-d", "solver.kind = quasi-newton", "contact"],
+            vec!["case-d", "--solver", "pd"],
+            vec!["built-in case-d", "solver.kind = pd", "contact"],
         ),
         (
             vec![
