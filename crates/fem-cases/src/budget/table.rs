@@ -361,7 +361,9 @@ impl Budget {
         }
     }
 
-    /// Every trial, one CSV row each.
+    /// Every trial, one CSV row each (RFC 4180: a field with a comma, a quote or a line break
+    /// is quoted, as the settings' labels `bdf2, 10 iterations` and `cg-jacobi, 25 iterations`
+    /// are).
     pub fn to_csv(&self) -> String {
         let mut s = String::from(
             "energy,framework,setting,tolerance,stable,over_cap,ms_per_frame,iterations_per_frame,residual,rank_value,position_rms,position_max,area,inverted",
@@ -380,7 +382,7 @@ impl Budget {
                 "{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
                 t.energy,
                 t.framework.name(),
-                t.setting,
+                csv_field(&t.setting),
                 opt(t.tolerance),
                 t.stable,
                 t.over_cap,
@@ -725,4 +727,14 @@ pub(super) fn sentence(budget: &Budget, energy: EnergyKind, spec: &BudgetSpec) -
         }
     }
     out
+}
+
+/// One CSV field (RFC 4180): quoted, with its quotes doubled, when it holds a comma, a quote or
+/// a line break; as it is otherwise.
+fn csv_field(s: &str) -> std::borrow::Cow<'_, str> {
+    if s.contains([',', '"', '\n', '\r']) {
+        format!("\"{}\"", s.replace('"', "\"\"")).into()
+    } else {
+        s.into()
+    }
 }

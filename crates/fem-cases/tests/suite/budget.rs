@@ -429,6 +429,26 @@ fn rungs_over_the_cost_cap_are_stopped_and_reported() {
     );
     let md = b.to_markdown();
     assert!(md.contains("none stable within 4 times the budget"), "{md}");
+    // budget.csv: a label with a comma (PD's `bdf2, 2 iterations`) is one quoted field, so
+    // every row has the header's fields.
+    let csv = b.to_csv();
+    assert!(csv.contains("\"bdf2, 2 iterations\""), "{csv}");
+    let fields = |line: &str| {
+        let (mut n, mut quoted) = (1, false);
+        for c in line.chars() {
+            match c {
+                '"' => quoted = !quoted,
+                ',' if !quoted => n += 1,
+                _ => {}
+            }
+        }
+        n
+    };
+    let mut lines = csv.lines();
+    let header = fields(lines.next().unwrap());
+    for line in lines {
+        assert_eq!(fields(line), header, "{line}");
+    }
     assert!(b.sentences[0].contains("no framework has a stable setting within the budget"));
     let dir = std::env::temp_dir().join(format!("fem2d-budget-cap-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
