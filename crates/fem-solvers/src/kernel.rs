@@ -95,6 +95,14 @@ impl Inversion {
             inverted: a.inverted + b.inverted,
         }
     }
+    /// Over every element of `mesh` at positions `x` (sequential: after a solve, not in one).
+    pub fn of_mesh(mesh: &Mesh, x: &[Vec2]) -> Inversion {
+        let mut inv = Inversion::EMPTY;
+        for (t, el) in mesh.elements().iter().enumerate() {
+            inv.add(el.deformation_gradient(mesh.gather(t, x)).determinant());
+        }
+        inv
+    }
 }
 
 /// The deformation gradient of `el` at positions `x`.

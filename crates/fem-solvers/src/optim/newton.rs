@@ -44,6 +44,7 @@ use fem_core::mesh::Mesh;
 
 use crate::contact::barrier::{BarrierContact, Dof};
 use crate::error::{SolverError, check_at_most, check_count};
+use crate::kernel::Inversion;
 use crate::model::grab::{Spring, spring_energy, spring_of};
 use crate::model::limits;
 use crate::rigid::{BodyState, RigidBody};
@@ -1199,14 +1200,9 @@ impl NewtonSolver {
             ..rigid
         };
         report.converged = residual <= target || at_floor || settled;
-        let (mut min_det, mut inverted) = (Real::INFINITY, 0);
-        for (t, el) in p.mesh.elements().iter().enumerate() {
-            let j = el.deformation_gradient(p.mesh.gather(t, x)).determinant();
-            min_det = min_det.min(j);
-            inverted += usize::from(j <= 0.0);
-        }
-        report.min_det_f = min_det;
-        report.inverted = inverted;
+        let inv = Inversion::of_mesh(p.mesh, x);
+        report.min_det_f = inv.min_det_f;
+        report.inverted = inv.inverted;
         Ok(report)
     }
 }

@@ -38,6 +38,7 @@ use super::{Stepper, check_step_inputs};
 use crate::contact::Contact;
 use crate::contact::barrier::BarrierContact;
 use crate::error::{SolverError, check_at_most, check_count};
+use crate::kernel::Inversion;
 use crate::model::Model;
 use crate::model::bc::Motion;
 use crate::model::limits;
@@ -292,15 +293,10 @@ impl Stepper for StaticStepper {
         // At full load the equilibrium is reached; with a grab it is solved again at every
         // step, following the hand.
         if state.t >= 1.0 && !model.is_grabbed() {
-            let (mut min_det_f, mut inverted) = (Real::INFINITY, 0);
-            let mesh = model.mesh();
-            for (t, el) in mesh.elements().iter().enumerate() {
-                let j = el
-                    .deformation_gradient(mesh.gather(t, &state.x))
-                    .determinant();
-                min_det_f = min_det_f.min(j);
-                inverted += usize::from(j <= 0.0);
-            }
+            let Inversion {
+                min_det_f,
+                inverted,
+            } = Inversion::of_mesh(model.mesh(), &state.x);
             return Ok(StepReport {
                 min_det_f,
                 inverted,

@@ -26,6 +26,7 @@ use fem_solvers::{
 use nalgebra::{DMatrix, DVector};
 
 use crate::common::{bits, cantilever, lame};
+use crate::rigid::rigidity_error;
 
 /// A cantilever (10 x 2 cells, Neo-Hookean, E = 1e4 Pa) sagging and swinging: the state after
 /// `steps` implicit Euler steps of 10 ms from rest, so every element is strained and every
@@ -401,21 +402,6 @@ fn body_with_a_bone() -> Model<AnyEnergy> {
         )
         .unwrap();
     model
-}
-
-/// The largest change of a distance between two vertices of rigid body `b`, m.
-fn rigidity_error<E: Energy>(model: &Model<E>, state: &State, b: usize) -> Real {
-    let body = &model.rigid_bodies()[b];
-    let x0 = model.mesh().vertices();
-    let mut worst: Real = 0.0;
-    for &i in &body.vertices {
-        for &j in &body.vertices {
-            let (i, j) = (i as usize, j as usize);
-            let d = (state.x[i] - state.x[j]).norm() - (x0[i] - x0[j]).norm();
-            worst = worst.max(d.abs());
-        }
-    }
-    worst
 }
 
 /// The body with its bone lands on the ground and the slab lands on it, at 1/90 s for 1.5 s,

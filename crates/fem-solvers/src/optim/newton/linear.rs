@@ -68,6 +68,7 @@ use fem_core::math::{Real, Vec2};
 use super::{NewtonReport, NewtonSolver, Potential, RigidUnknowns};
 use crate::contact::barrier::BarrierContact;
 use crate::error::SolverError;
+use crate::kernel::Inversion;
 
 /// The linear solver of a linearly implicit step. Serde names: `direct`, `cg-jacobi`,
 /// `cg-cholesky`.
@@ -399,14 +400,9 @@ impl NewtonSolver {
         }
         report.residual = residual;
         report.step_fraction = alpha * fraction;
-        let (mut min_det, mut inverted) = (Real::INFINITY, 0);
-        for (t, el) in p.mesh.elements().iter().enumerate() {
-            let j = el.deformation_gradient(p.mesh.gather(t, x)).determinant();
-            min_det = min_det.min(j);
-            inverted += usize::from(j <= 0.0);
-        }
-        report.min_det_f = min_det;
-        report.inverted = inverted;
+        let inv = Inversion::of_mesh(p.mesh, x);
+        report.min_det_f = inv.min_det_f;
+        report.inverted = inv.inverted;
         Ok(report)
     }
 
