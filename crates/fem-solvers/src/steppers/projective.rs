@@ -76,7 +76,7 @@ use crate::model::state::State;
 use crate::optim::newton::force_scale;
 use crate::optim::pd_system::{PdSystem, element_lame};
 use crate::steppers::implicit::external_load;
-use crate::steppers::integrator::{History, Integrator, bdf2_weight};
+use crate::steppers::integrator::{History, Integrator};
 use crate::steppers::registry::{Capabilities, Clock, Solver};
 use crate::steppers::report::StepReport;
 use crate::steppers::vbd::{Chebyshev, commit_positions};
@@ -226,27 +226,16 @@ impl PdStepper {
             kinematic[v] = true;
         }
         let h = params.dt;
-        let system = PdSystem::new(
+        let (system, bdf2_system) = PdSystem::for_integrator(
             mesh,
             model.masses(),
             &weights,
-            1.0 / (h * h),
+            h,
+            params.integrator,
             model.springs(),
             &kinematic,
             "pd",
         )?;
-        let bdf2_system = match params.integrator {
-            Integrator::Bdf2 => Some(PdSystem::new(
-                mesh,
-                model.masses(),
-                &weights,
-                bdf2_weight(h),
-                model.springs(),
-                &kinematic,
-                "pd",
-            )?),
-            _ => None,
-        };
         let free: Vec<u32> = (0..n as u32).filter(|&v| !kinematic[v as usize]).collect();
         Ok(PdStepper {
             layout: model.layout(),
