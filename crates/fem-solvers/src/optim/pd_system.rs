@@ -32,7 +32,6 @@ use fem_core::mesh::Mesh;
 
 use crate::error::SolverError;
 use crate::model::grab::Spring;
-use crate::steppers::integrator::{Integrator, bdf2_weight};
 
 /// The Lamé parameters `(mu, lambda)` of `energy`'s tangent at rest.
 pub(crate) fn rest_lame<E: Energy>(energy: &E) -> (Real, Real) {
@@ -76,29 +75,6 @@ impl std::fmt::Debug for PdSystem {
 }
 
 impl PdSystem {
-    /// The matrices of a step of length `h` under `integrator`: backward Euler's (inertia
-    /// weight `1 / h^2`), and under BDF2 BDF2's too (`9 / (4 h^2)`; its first step and
-    /// fall-backs are backward Euler's). Arguments and errors as [`PdSystem::new`].
-    #[allow(clippy::too_many_arguments)]
-    pub(crate) fn for_integrator(
-        mesh: &Mesh,
-        masses: &[Real],
-        weights: &[Real],
-        h: Real,
-        integrator: Integrator,
-        springs: &[Spring],
-        kinematic: &[bool],
-        prefix: &str,
-    ) -> Result<(Self, Option<Self>), SolverError> {
-        let build = |w| PdSystem::new(mesh, masses, weights, w, springs, kinematic, prefix);
-        let backward_euler = build(1.0 / (h * h))?;
-        let bdf2 = match integrator {
-            Integrator::Bdf2 => Some(build(bdf2_weight(h))?),
-            Integrator::BackwardEuler => None,
-        };
-        Ok((backward_euler, bdf2))
-    }
-
     /// Assemble and factorise `A` for `mesh` with element weights `weights`, lumped `masses`,
     /// inertia weight `w = 1 / h^2`, the grab's `springs` and the vertices `kinematic` held.
     /// Errors name `prefix`.

@@ -44,10 +44,13 @@ use std::str::FromStr;
 
 use fem_core::energy::Energy;
 use fem_core::math::{Real, Vec2};
+use fem_core::mesh::Mesh;
 
 use crate::error::SolverError;
 use crate::model::Model;
+use crate::model::grab::Spring;
 use crate::model::state::State;
+use crate::optim::pd_system::PdSystem;
 use crate::rigid::{BodyState, ObstacleMotion};
 
 /// The time integrator of a solver that minimises an incremental potential (scene key
@@ -344,6 +347,29 @@ impl History {
     pub(crate) fn clear(&mut self) {
         self.valid = false;
     }
+}
+
+/// The matrices of a step of length `h` under `integrator`: backward Euler's (inertia
+/// weight `1 / h^2`), and under BDF2 BDF2's too (`9 / (4 h^2)`; its first step and
+/// fall-backs are backward Euler's). Arguments and errors as `PdSystem::new`'s.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn pd_systems(
+    mesh: &Mesh,
+    masses: &[Real],
+    weights: &[Real],
+    h: Real,
+    integrator: Integrator,
+    springs: &[Spring],
+    kinematic: &[bool],
+    prefix: &str,
+) -> Result<(PdSystem, Option<PdSystem>), SolverError> {
+    let build = |w| PdSystem::new(mesh, masses, weights, w, springs, kinematic, prefix);
+    let backward_euler = build(1.0 / (h * h))?;
+    let bdf2 = match integrator {
+        Integrator::Bdf2 => Some(build(bdf2_weight(h))?),
+        Integrator::BackwardEuler => None,
+    };
+    Ok((backward_euler, bdf2))
 }
 
 #[cfg(test)]

@@ -76,7 +76,7 @@ use crate::model::state::State;
 use crate::optim::newton::force_scale;
 use crate::optim::pd_system::{PdSystem, element_lame};
 use crate::steppers::implicit::external_load;
-use crate::steppers::integrator::{History, Integrator};
+use crate::steppers::integrator::{History, Integrator, pd_systems};
 use crate::steppers::registry::{Capabilities, Clock, Solver};
 use crate::steppers::report::StepReport;
 use crate::steppers::vbd::{Chebyshev, commit_positions};
@@ -226,7 +226,7 @@ impl PdStepper {
             kinematic[v] = true;
         }
         let h = params.dt;
-        let (system, bdf2_system) = PdSystem::for_integrator(
+        let (system, bdf2_system) = pd_systems(
             mesh,
             model.masses(),
             &weights,

@@ -97,7 +97,7 @@ use crate::model::state::State;
 use crate::optim::newton::{Potential, force_scale};
 use crate::optim::pd_system::{PdSystem, element_lame};
 use crate::steppers::implicit::external_load;
-use crate::steppers::integrator::{History, Integrator};
+use crate::steppers::integrator::{History, Integrator, pd_systems};
 use crate::steppers::registry::{Capabilities, Clock, Solver};
 use crate::steppers::report::StepReport;
 use crate::steppers::vbd::{commit_positions, forbids_inversion, inversion};
@@ -366,7 +366,7 @@ impl QuasiNewtonStepper {
             kinematic[v] = true;
         }
         let h = params.dt;
-        let (mut system, mut bdf2_system) = PdSystem::for_integrator(
+        let (mut system, mut bdf2_system) = pd_systems(
             mesh,
             model.masses(),
             &weights,
