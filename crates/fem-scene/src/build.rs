@@ -434,6 +434,7 @@ pub fn build_model<E: Energy>(
 ) -> Result<Model<E>, SceneError> {
     let mut model = build_unloaded_model(scene, mesh, energy)?;
     add_loads(scene, &mut model)?;
+    crate::scales::check_scales(scene, &model)?;
     Ok(model)
 }
 

@@ -39,6 +39,7 @@ pub mod drag;
 pub mod error;
 pub mod region_stats;
 pub mod run;
+pub mod scales;
 pub mod scene;
 mod solver_spec;
 

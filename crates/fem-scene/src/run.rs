@@ -946,6 +946,21 @@ fn step_loop<E: Energy>(
             }
             let t_before = state.t;
             match stepper.step(model, state) {
+                Ok(report)
+                    if (caps.implicit || caps.iterations) && !report.residual.is_finite() =>
+                {
+                    // A residual that overflowed measures nothing: the step is no solution,
+                    // whatever the solver concluded from it.
+                    failed = Some(SolverError::BeyondPrecision {
+                        prefix: "run",
+                        detail: format!(
+                            "step {}: the solver's residual is not finite ({})",
+                            state.step.saturating_sub(1),
+                            report.residual
+                        ),
+                    });
+                    break;
+                }
                 Ok(report) => {
                     if let Some(d) = drag.as_ref() {
                         d.after_step(state, state.t - t_before);
@@ -983,7 +998,7 @@ fn step_loop<E: Energy>(
         }
         stepping += clock.seconds() - t0;
         if let Some(e) = failed {
-            blow_up = Some(format!("{}: {e}", scene.origin));
+            blow_up = Some(crate::scales::explain(scene, &e));
         }
         if done.is_multiple_of(every) || finished(done, state) || blow_up.is_some() {
             if rec.frame_times.last().map(|f| f.0) != Some(state.step) {

@@ -97,6 +97,22 @@ pub enum SolverError {
         /// Final residual, N.
         residual: Real,
     },
+    /// A Newton-family solve that cannot move the body although a load acts on it: the load
+    /// is below the round-off of the stiffness and inertia it acts against on every free
+    /// unknown (a modulus or a spring beside which it is round-off, or a step so short that it
+    /// moves nothing by one unit in the last place of the coordinates), or the first Newton
+    /// step is below that round-off while the residual is above it (a Hessian too
+    /// ill-conditioned to solve). Raised instead of reporting a step that did not move as
+    /// converged.
+    #[error(
+        "{prefix}: {detail}; a modulus, a spring, the time step or the load is beyond what double precision can solve"
+    )]
+    BeyondPrecision {
+        /// The solver (`implicit`, `static`, ...).
+        prefix: &'static str,
+        /// What was measured (the load, the floors, the step).
+        detail: String,
+    },
     /// A load increment of the quasi-static solver failed after every allowed halving.
     #[error(
         "load increment {increment} (load factor {from} to {to}, after {halvings} halvings): {reason}; add load steps or raise max_iterations"

@@ -53,6 +53,13 @@ use fem_core::clock::Stopwatch;
 // The linearly implicit Euler step: one linear solve of this solver's system per step.
 mod linear;
 pub use linear::{LinearReport, LinearSolver};
+
+/// The round-off floor of a gradient entry, in units in the last place of the coordinates
+/// times its Hessian row (see `NewtonSolver::floors`): a force computed from positions off by
+/// one ulp each is off by about one ulp times its row, and sums over a handful of elements and
+/// the energy's own arithmetic add a few tens more; 100 leaves a margin without hiding a
+/// residual a thousand times above the round-off.
+pub(crate) const FLOOR_ULPS: Real = 100.0;
 pub(crate) use linear::{LinearSettings, LinearWork};
 
 /// Convergence and line-search settings of Newton's method.
@@ -327,6 +334,11 @@ pub(crate) struct NewtonSolver {
     gradient: Vec<Real>,
     direction: Vec<Real>,
     trial: Vec<Vec2>,
+    /// Each free unknown's round-off floor of the gradient, N (see [`Self::floors`]), from the
+    /// last assembled Hessian.
+    floor: Vec<Real>,
+    /// The stored matrix's absolute row sums, in the factorisation's order (scratch).
+    row_sums: Vec<Real>,
 }
 
 impl std::fmt::Debug for NewtonSolver {
@@ -569,6 +581,8 @@ impl NewtonSolver {
             gradient: vec![0.0; n_free],
             direction: vec![0.0; n_free],
             trial: vec![Vec2::zeros(); mesh.n_vertices()],
+            floor: vec![0.0; n_free],
+            row_sums: vec![0.0; n_free],
         };
         let slots: Vec<[u32; 4]> = (solver.rigid.entries.iter())
             .map(|&(_, r, c)| {
@@ -745,8 +759,88 @@ impl NewtonSolver {
     ) -> Result<(), SolverError> {
         let start = Stopwatch::start();
         self.assemble(p, x, contact, (rigid, rq));
+        self.floors(x);
         report.assembly_seconds += start.seconds();
         self.factorise_assembled(report)
+    }
+
+    /// Each free unknown's round-off floor from the assembled Hessian `H` at `x`:
+    /// `FLOOR_ULPS eps X sum_k |H_jk|`, with `X` the largest coordinate magnitude (at least the
+    /// body's size). Positions are absolute coordinates, so each one carries a round-off of
+    /// `eps X`, and a gradient entry computed from them one of about `eps X` times its row of
+    /// `H` (its stiffness, inertia, springs and barriers, whatever their scale): below it, a
+    /// residual is as small as double precision can make it. The floors are per unknown, so a
+    /// stiff region's (a bone 1e11 times stiffer than the tissue) raises only its own.
+    fn floors(&mut self, x: &[Vec2]) {
+        let coordinate = x
+            .iter()
+            .fold(0.0, |m: Real, p| m.max(p.x.abs()).max(p.y.abs()))
+            .max(body_size(x));
+        self.row_sums.fill(0.0);
+        for j in 0..self.n_free {
+            for k in self.col_ptr[j]..self.col_ptr[j + 1] {
+                let (i, v) = (self.row_idx[k], self.values[k].abs());
+                self.row_sums[i] += v;
+                if i != j {
+                    self.row_sums[j] += v;
+                }
+            }
+        }
+        let unit = FLOOR_ULPS * Real::EPSILON * coordinate;
+        for (f, &k) in self.floor.iter_mut().zip(&self.position) {
+            *f = unit * self.row_sums[k];
+        }
+    }
+
+    /// The load on the free unknowns (the external load, the springs' pull towards their goals
+    /// and a rigid body's share of its vertices' load) at `x`: its 2-norm and the 2-norm of
+    /// its part above the round-off floors (`floors` at `x` first).
+    fn load_above_floor<E: Energy>(
+        &self,
+        p: &Potential<'_, E>,
+        x: &[Vec2],
+        (rigid, rq): (&RigidUnknowns, &[[Real; 3]]),
+    ) -> (Real, Real) {
+        let (mut norm, mut above) = (0.0, 0.0);
+        let mut add = |load: Real, floor: Real| {
+            norm += load * load;
+            above += (load.abs() - floor).max(0.0).powi(2);
+        };
+        for (v, xv) in x.iter().enumerate() {
+            let mut f = p.load[v];
+            if let Some(s) = spring_of(p.springs, v) {
+                f += (s.goal - xv) * s.stiffness;
+            }
+            for d in 0..2 {
+                let j = self.free[2 * v + d];
+                if j != u32::MAX {
+                    add(f[d], self.floor[j as usize]);
+                }
+            }
+        }
+        for (k, (body, q)) in rigid.bodies.iter().zip(rq).enumerate() {
+            let (mut f, mut torque) = (Vec2::zeros(), 0.0);
+            for &v in &body.vertices {
+                let v = v as usize;
+                let r = x[v] - Vec2::new(q[0], q[1]);
+                f += p.load[v];
+                torque += r.x * p.load[v].y - r.y * p.load[v].x;
+            }
+            let j = rigid.first + 3 * k;
+            add(f.x, self.floor[j]);
+            add(f.y, self.floor[j + 1]);
+            add(torque, self.floor[j + 2]);
+        }
+        (norm.sqrt(), above.sqrt())
+    }
+
+    /// The part of `g` (one entry per free unknown) above the round-off floors, 2-norm:
+    /// `sqrt(sum_j max(|g_j| - floor_j, 0)^2)`.
+    fn above_floor(&self, g: &[Real]) -> Real {
+        (g.iter().zip(&self.floor))
+            .map(|(g, f)| (g.abs() - f).max(0.0).powi(2))
+            .sum::<Real>()
+            .sqrt()
     }
 
     /// Assemble `w M + K_projected` over the free DOFs into `self.values` (`self.forces` holds
@@ -1038,23 +1132,34 @@ impl NewtonSolver {
             .map(|g| g * g)
             .sum::<Real>()
             .sqrt();
-        let target = params.tolerance * force_scale(own, p.load, self.elastic_force);
+        let scale = force_scale(own, p.load, self.elastic_force);
+        if !(residual.is_finite() && scale.is_finite()) {
+            self.trial_q = trial_q;
+            self.rigid = RigidUnknowns {
+                q: rq,
+                trial: rtrial,
+                ..rigid
+            };
+            return Err(SolverError::invalid(
+                format!("{}.forces", self.prefix),
+                residual.max(scale),
+                "the forces at the starting positions overflow double precision \
+                 (a load, a modulus, a spring or a barrier stiffness too large)",
+            ));
+        }
+        let target = params.tolerance * scale;
         report.residuals.push(residual);
         report.potentials.push(phi);
-        // Positions are absolute coordinates, so forces carry a round-off floor of about
-        // eps E (size / element size): a Newton step below `1e-13` of the body's size is at that
-        // floor and counts as converged even when the residual tolerance is tighter. The
-        // potential has a floor too (eps times its terms, and `psi`'s terms are of the order of
-        // the modulus, not of `psi`): where a trial's change of potential is below it, the line
-        // search accepts the trial if it lowers the residual instead.
+        // Positions are absolute coordinates, so forces carry a round-off floor (see
+        // `floors`): a Newton step below `1e-13` of the body's size is at that floor and counts
+        // as converged even when the residual tolerance is tighter, and so does a residual
+        // whose part above each unknown's own floor meets the tolerance. The potential has a
+        // floor too (eps times its terms, and `psi`'s terms are of the order of the modulus,
+        // not of `psi`): where a trial's change of potential is below it, the line search
+        // accepts the trial if it lowers the residual instead.
         let psi_scale = potential_scale(p.mesh, p.energy);
         let size = body_size(p.mesh.vertices());
-        // The forces' own round-off floor, about 1e-13 of the elastic force scale
-        // `sum_e M_e a_e / size`: a residual below it is as small as this precision allows (a
-        // stiff bone region raises it ten thousandfold over the soft tissue's, above a
-        // tolerance relative to the load).
-        let residual_floor = 1e-13 * psi_scale / size;
-        let mut at_floor = residual <= residual_floor;
+        let mut at_floor = false;
         let mut settled = false;
         while residual > target && !at_floor && report.iterations < params.max_iterations {
             self.factorise(
@@ -1064,12 +1169,63 @@ impl NewtonSolver {
                 (&rigid, &rq),
                 &mut report,
             )?;
+            let excess = self.above_floor(&self.gradient);
+            if excess <= target {
+                // Every unknown's residual is within its round-off floor. Before any step that
+                // is an equilibrium only if the load itself is resolvable: a load below the
+                // floors on every unknown (a modulus or a spring beside which it is round-off,
+                // or a step so short that it moves nothing by an ulp) would leave the body
+                // where it is, which is not a solution of the problem posed.
+                if report.iterations == 0 {
+                    let (load, above) = self.load_above_floor(p, x, (&rigid, &rq));
+                    if load > 0.0 && above <= params.tolerance * load {
+                        self.trial_q = trial_q;
+                        self.rigid = RigidUnknowns {
+                            q: rq,
+                            trial: rtrial,
+                            ..rigid
+                        };
+                        let floor = self.floor.iter().map(|f| f * f).sum::<Real>().sqrt();
+                        return Err(SolverError::BeyondPrecision {
+                            prefix: self.prefix,
+                            detail: format!(
+                                "the load ({load:.3e} N) is below the round-off of the stiffness \
+                                 and inertia it acts against on every free vertex (their floor, \
+                                 {floor:.3e} N), so it would move nothing by one unit in the last \
+                                 place of the coordinates"
+                            ),
+                        });
+                    }
+                }
+                at_floor = true;
+                break;
+            }
             let start = Stopwatch::start();
             self.solve();
             report.solve_seconds += start.seconds();
             let start = Stopwatch::start();
             let step = self.direction.iter().fold(0.0, |m: Real, d| m.max(d.abs()));
             if step <= 1e-13 * size {
+                if report.iterations == 0 {
+                    // The first step would move nothing although the residual is above its
+                    // floors: the factorisation lost the free part of the body (stiffnesses
+                    // too far apart to solve together, or a diagonal shift swamped them).
+                    self.trial_q = trial_q;
+                    self.rigid = RigidUnknowns {
+                        q: rq,
+                        trial: rtrial,
+                        ..rigid
+                    };
+                    return Err(SolverError::BeyondPrecision {
+                        prefix: self.prefix,
+                        detail: format!(
+                            "the first Newton step ({step:.3e} m) is below the round-off of the \
+                             coordinates while the residual ({residual:.3e} N) is above its \
+                             floors ({excess:.3e} N above them): the stiffness matrix is too \
+                             ill-conditioned to solve"
+                        ),
+                    });
+                }
                 at_floor = true;
                 break;
             }
@@ -1161,8 +1317,8 @@ impl NewtonSolver {
             report.iterations += 1;
             if !accepted {
                 // No decrease along the Newton direction within round-off: the iterate is as
-                // good as this precision allows (converged when at the forces' floor).
-                at_floor = residual <= residual_floor;
+                // good as this precision allows (converged when at the forces' floors).
+                at_floor = excess <= target;
                 break;
             }
             if step_tolerance > 0.0 && alpha == 1.0 {
@@ -1188,7 +1344,10 @@ impl NewtonSolver {
             report.assembly_seconds += start.seconds();
             report.residuals.push(residual);
             report.potentials.push(phi);
-            at_floor |= residual <= residual_floor;
+            if !residual.is_finite() {
+                break;
+            }
+            at_floor |= self.above_floor(&self.gradient) <= target;
             if settled {
                 break;
             }
@@ -1199,7 +1358,7 @@ impl NewtonSolver {
             trial: rtrial,
             ..rigid
         };
-        report.converged = residual <= target || at_floor || settled;
+        report.converged = residual.is_finite() && (residual <= target || at_floor || settled);
         let inv = Inversion::of_mesh(p.mesh, x);
         report.min_det_f = inv.min_det_f;
         report.inverted = inv.inverted;

@@ -600,6 +600,16 @@ impl Stepper for QuasiNewtonStepper {
             .sqrt();
         let mut gnorm = dot(&self.g, &self.g).sqrt();
         let scale = force_scale(gnorm, &self.load, elastic);
+        if !(gnorm.is_finite() && scale.is_finite()) {
+            return Err(SolverError::invalid(
+                "quasi-newton.forces",
+                fem_core::math::readable(gnorm.max(scale)),
+                "the forces at the starting positions overflow double precision \
+                 (a load, a modulus, a spring or a barrier stiffness too large)",
+            ));
+        }
+        // Whether any trial of the step had a finite potential, and whether any was taken.
+        let (mut finite_trial, mut moved) = (false, false);
         report.force_scale = scale;
         report.residuals.push(gnorm);
         while report.iterations < self.params.iterations && energy.is_finite() {
@@ -629,6 +639,7 @@ impl Stepper for QuasiNewtonStepper {
                     alpha *= 0.5;
                     continue;
                 }
+                finite_trial = true;
                 // Near the minimum the change of the potential falls below its round-off (eps
                 // times its terms, and psi's terms are of the order of the modulus, not of
                 // psi): there the trial is accepted if it lowers the gradient instead, as in
@@ -647,6 +658,7 @@ impl Stepper for QuasiNewtonStepper {
                 alpha *= 0.5;
             }
             report.iterations += 1;
+            moved |= accepted;
             if !accepted {
                 break;
             }
@@ -659,6 +671,18 @@ impl Stepper for QuasiNewtonStepper {
         }
         if gnorm <= self.params.tolerance * scale {
             report.converged = true;
+        }
+        if !moved && !finite_trial && !report.converged {
+            // Every trial overflowed: the body would stay where it is under a load it cannot
+            // resist, which is no step of the problem posed.
+            return Err(SolverError::BeyondPrecision {
+                prefix: "quasi-newton",
+                detail: format!(
+                    "no trial along the search direction has a finite potential (the step \
+                     halved {} times; residual {gnorm:.3e} N)",
+                    self.params.max_halvings
+                ),
+            });
         }
         let inv = commit_positions(
             model,

@@ -443,6 +443,8 @@ impl Stepper for StaticStepper {
                     self.last = r;
                     return Ok(out);
                 }
+                // Halving the load only lowers it further below the floors.
+                Err(e @ SolverError::BeyondPrecision { .. }) => return Err(e),
                 Err(e) => e.to_string(),
                 Ok(r) => {
                     failed_iterations += r.iterations;

@@ -757,6 +757,17 @@ impl QuasiNewtonStepper {
             .sum::<Real>()
             .sqrt();
         let scale = force_scale(own, load, cp.newton.elastic_force());
+        if !(gnorm.is_finite() && scale.is_finite()) {
+            *cp.newton.rigid() = rigid;
+            return Err(SolverError::invalid(
+                "quasi-newton.forces",
+                fem_core::math::readable(gnorm.max(scale)),
+                "the forces at the starting positions overflow double precision \
+                 (a load, a modulus, a spring or a barrier stiffness too large)",
+            ));
+        }
+        // Whether any trial of the step had a finite potential, and whether any was taken.
+        let (mut finite_trial, mut moved) = (false, false);
         report.force_scale = scale;
         report.residuals.push(gnorm);
         cp.h0.begin(&cp.rq, w, bdf2);
@@ -826,6 +837,7 @@ impl QuasiNewtonStepper {
                     alpha *= 0.5;
                     continue;
                 }
+                finite_trial = true;
                 // Within the potential's round-off a trial that lowers the gradient is taken
                 // instead, keeping the lower potential as the reference (no cycling), as in
                 // Newton's line search.
@@ -846,6 +858,7 @@ impl QuasiNewtonStepper {
                 alpha *= 0.5;
             }
             report.iterations += 1;
+            moved |= accepted;
             if !accepted {
                 if lbfgs.pairs > 0 {
                     // The pairs' curvature misled the direction (the barrier's changes fast):
@@ -891,6 +904,19 @@ impl QuasiNewtonStepper {
         }
         if gnorm <= params.tolerance * scale {
             report.converged = true;
+        }
+        if !moved && !finite_trial && !report.converged {
+            // Every trial overflowed: the body would stay where it is under a load it cannot
+            // resist, which is no step of the problem posed.
+            *cp.newton.rigid() = rigid;
+            return Err(SolverError::BeyondPrecision {
+                prefix: "quasi-newton",
+                detail: format!(
+                    "no trial along the search direction has a finite potential (the step \
+                     halved {} times; residual {gnorm:.3e} N)",
+                    params.max_halvings
+                ),
+            });
         }
         *cp.newton.rigid() = rigid;
         // The bodies' new poses and velocities, as implicit Euler's.
