@@ -1417,7 +1417,7 @@ pub(crate) fn force_scale(first: Real, load: &[Vec2], elastic: Real) -> Real {
 }
 
 /// The diagonal of the bounding box of `x`, m.
-fn body_size(x: &[Vec2]) -> Real {
+pub(crate) fn body_size(x: &[Vec2]) -> Real {
     let (mut lo, mut hi) = (
         Vec2::repeat(Real::INFINITY),
         Vec2::repeat(Real::NEG_INFINITY),

@@ -905,15 +905,25 @@ impl QuasiNewtonStepper {
         if gnorm <= params.tolerance * scale {
             report.converged = true;
         }
-        if !moved && !finite_trial && !report.converged {
-            // Every trial overflowed: the body would stay where it is under a load it cannot
-            // resist, which is no step of the problem posed.
+        // A step that took no trial, from a start that is the current state (the prediction
+        // was not finite) or with every trial's potential infinite, leaves the body where it is
+        // under a load it did not resist: no step of the problem posed, unless the smallest
+        // trial inverts an element under an energy that forbids it within the body's size of
+        // the start (a stall of the fixed budget, reported by its residual).
+        let stalled = !moved && (report.fallback_guess || !finite_trial) && !report.converged && {
+            let reach = (x.iter().zip(trial.iter()))
+                .map(|(a, b)| (a - b).norm())
+                .fold(0.0, Real::max);
+            let size = crate::optim::newton::body_size(x);
+            !(*forbids_inversion && reach <= size && inversion(els, trial).inverted > 0)
+        };
+        if stalled {
             *cp.newton.rigid() = rigid;
             return Err(SolverError::BeyondPrecision {
                 prefix: "quasi-newton",
                 detail: format!(
-                    "no trial along the search direction has a finite potential (the step \
-                     halved {} times; residual {gnorm:.3e} N)",
+                    "the step did not move the body: no trial along the search direction has \
+                     a finite, lower potential (halved {} times; residual {gnorm:.3e} N)",
                     params.max_halvings
                 ),
             });
