@@ -324,7 +324,7 @@ fn frame_budgets(
             .budget
             .charts()
             .into_iter()
-            .filter(|(_, c)| c.series.iter().any(|s| !s.points.is_empty()))
+            .filter(|(_, c)| crate::budget::drawable(c))
         {
             let file = format!("budget-{name}-{}.png", energy.name());
             write_atomic(&dir.join(&file), &png_of(&chart)?)?;

@@ -575,3 +575,176 @@ fn window(
         .reduce(f64::max);
     e
 }
+
+/// Why the errors of a run recorded as `t` cannot be measured (`position is not finite in 3
+/// places (first at frame 7, vertex 12)`): the first kind of recorded
+/// value the errors read that is not finite (a position; a soft triangle's von Mises stress
+/// where the triangle is not inverted, an inverted one counting as unstressed; a contact
+/// target's pressure or force; a rigid body's wrench; the kinetic energy), with how many and
+/// where the first is. `None` when every such value is finite.
+pub fn non_finite(layout: &Layout, t: &Trajectory) -> Option<String> {
+    let first = |what: &str, count: usize, at: Option<(usize, String)>| {
+        at.map(|(f, place)| {
+            format!("{what} is not finite in {count} places (first at frame {f}, {place})")
+        })
+    };
+    // Positions.
+    let mut count = 0;
+    let mut at = None;
+    for (f, x) in t.frames.iter().enumerate() {
+        for (v, p) in x.iter().enumerate() {
+            if !(p[0].is_finite() && p[1].is_finite()) {
+                count += 1;
+                at = at.or(Some((f, format!("vertex {v}"))));
+            }
+        }
+    }
+    if let Some(s) = first("position", count, at) {
+        return Some(s);
+    }
+    // Soft tissue stress, where the triangle is not inverted.
+    let (mut count, mut at) = (0, None);
+    for (f, s) in t.von_mises.iter().enumerate() {
+        let Some(x) = t.frames.get(f) else { continue };
+        for (k, (v, tri)) in s.iter().zip(&layout.triangles).enumerate() {
+            if !v.is_finite() && layout.soft(k) && area(x, tri) > 0.0 {
+                count += 1;
+                at = at.or(Some((f, format!("triangle {k}, not inverted"))));
+            }
+        }
+    }
+    if let Some(s) = first("von Mises stress", count, at) {
+        return Some(s);
+    }
+    let (mut count, mut at) = (0, None);
+    for (f, row) in t.contact.iter().enumerate() {
+        for (k, c) in row.iter().enumerate() {
+            if !(c[0].is_finite() && c[1].is_finite()) {
+                count += 1;
+                let name = layout.contact_targets.get(k).map_or("?", String::as_str);
+                at = at.or(Some((f, format!("target {name}"))));
+            }
+        }
+    }
+    if let Some(s) = first("contact pressure or force", count, at) {
+        return Some(s);
+    }
+    let (mut count, mut at) = (0, None);
+    for (f, row) in t.rigid.iter().enumerate() {
+        for (b, w) in row.iter().enumerate() {
+            if !w.iter().all(|x| x.is_finite()) {
+                count += 1;
+                at = at.or(Some((f, format!("rigid body {b}"))));
+            }
+        }
+    }
+    if let Some(s) = first("force or torque on a rigid body", count, at) {
+        return Some(s);
+    }
+    let (mut count, mut at) = (0, None);
+    for (f, k) in t.kinetic_energy.iter().enumerate() {
+        if !k.is_finite() {
+            count += 1;
+            at = at.or(Some((f, "the whole body".to_owned())));
+        }
+    }
+    first("kinetic energy", count, at)
+}
+
+impl WindowErrors {
+    /// Every number in it is finite (an overflow, `inf` or `NaN`, makes the errors
+    /// unmeasured).
+    pub fn is_finite(&self) -> bool {
+        let opt = |x: Option<f64>| x.is_none_or(f64::is_finite);
+        self.position_rms.is_finite()
+            && self.position_max.is_finite()
+            && self.area.is_finite()
+            && opt(self.stress_l2)
+            && opt(self.stress_peak)
+            && opt(self.pressure_peak)
+            && self
+                .regions
+                .iter()
+                .all(|r| opt(r.stress_l2) && opt(r.stress_peak) && opt(r.force) && opt(r.torque))
+            && self.contact.iter().all(|c| {
+                c.reference_peak_pressure.is_finite()
+                    && c.reference_impulse.is_finite()
+                    && opt(c.peak_pressure)
+                    && opt(c.impulse)
+            })
+    }
+}
+
+impl Errors {
+    /// Every number of every window is finite.
+    pub fn is_finite(&self) -> bool {
+        self.whole.is_finite()
+            && self.impact.as_ref().is_none_or(WindowErrors::is_finite)
+            && self.sustained.as_ref().is_none_or(WindowErrors::is_finite)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn square() -> (Layout, Trajectory) {
+        let rest = vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]];
+        let layout = Layout {
+            rest: rest.clone(),
+            triangles: vec![[0, 1, 2], [0, 2, 3]],
+            region_tags: vec![0, 0],
+            regions: vec![RegionInfo {
+                name: "body".into(),
+                rigid: false,
+            }],
+            frame_dt: 0.1,
+            ..Layout::default()
+        };
+        let t = Trajectory {
+            frames: vec![rest.clone(), rest],
+            von_mises: vec![vec![1.0, 2.0], vec![1.0, 2.0]],
+            contact: vec![Vec::new(), Vec::new()],
+            rigid: vec![Vec::new(), Vec::new()],
+            kinetic_energy: vec![0.0, 0.0],
+        };
+        (layout, t)
+    }
+
+    /// A stress that is not finite on a triangle that is not inverted makes the run
+    /// unmeasured (the stress of a collapsed solver, an overflow); on an inverted triangle it
+    /// counts as unstressed, as the errors' definition says.
+    #[test]
+    fn non_finite_stress_is_unmeasurable_unless_the_triangle_is_inverted() {
+        let (layout, mut t) = square();
+        assert_eq!(non_finite(&layout, &t), None);
+        t.von_mises[1][0] = f64::NAN;
+        let why = non_finite(&layout, &t).expect("NaN stress");
+        assert!(
+            why.contains("von Mises stress") && why.contains("frame 1, triangle 0"),
+            "{why}"
+        );
+        // Invert triangle 0 in frame 1 (vertex 1 across the diagonal): its NaN is allowed.
+        t.frames[1][1] = [0.0, 1.0];
+        assert_eq!(non_finite(&layout, &t), None);
+        t.kinetic_energy[0] = f64::INFINITY;
+        assert!(non_finite(&layout, &t).unwrap().contains("kinetic energy"));
+        t.frames[0][2] = [f64::NAN, 0.0];
+        assert!(non_finite(&layout, &t).unwrap().contains("position"));
+    }
+
+    /// An error that overflowed is not finite, and the errors say so.
+    #[test]
+    fn errors_with_an_overflow_are_not_finite() {
+        let (layout, reference) = square();
+        let windows = Windows::find(&layout, &reference, 0.01);
+        let mut run = reference.clone();
+        run.von_mises[1][1] = 3.0;
+        let e = errors(&layout, &windows, &run, &reference);
+        assert!(e.is_finite(), "{e:?}");
+        // The square of a von Mises stress of 1e300 Pa overflows.
+        run.von_mises[1][1] = 1e300;
+        let e = errors(&layout, &windows, &run, &reference);
+        assert!(!e.is_finite(), "{e:?}");
+    }
+}

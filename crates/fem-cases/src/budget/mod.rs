@@ -42,6 +42,16 @@
 //! the quantity, and with contact says which settings (if any) get both the sustained soft
 //! tissue stress and peak contact pressure within [`BudgetSpec::criterion`] (5 %), or which
 //! comes closest.
+//!
+//! **Measured.** A stable setting's errors are measured when every value they read, in its
+//! run and in the reference, is finite and no error overflowed ([`measure::non_finite`],
+//! [`Errors::is_finite`]); otherwise its note says why, its numbers are left out of the
+//! tables, and it is never a row's best. No table holds a NaN or an infinity.
+//!
+//! **Checks and the time bound.** Every setting is checked first, the error naming its flag
+//! and value; the wall time is estimated from the step counts before anything runs and again
+//! from what was measured, and past [`BudgetSpec::max_minutes`] the comparison stops with an
+//! error naming `--max-minutes` ([`DEFAULT_MAX_MINUTES`] says why ten).
 
 pub mod measure;
 mod table;
@@ -57,6 +67,7 @@ use crate::files::FileSource;
 use crate::run::SystemClock;
 use measure::Recorder;
 pub use measure::{Errors, Layout, Phase, Trajectory, WindowErrors, Windows, errors};
+pub use table::drawable;
 
 /// The frameworks a budget compares. Serde and command-line names: [`Framework::name`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
@@ -503,6 +514,10 @@ pub struct BudgetSpec {
     /// Steps per frame of the reference (`None`: the scene's `[budget] reference_steps`, else
     /// 10 with contact, 100 without; at least 2, its own error is estimated at half as many).
     pub reference_steps: Option<u64>,
+    /// The longest the whole comparison may take, in minutes of wall time: estimated before
+    /// anything runs and again as it runs, it stops with an error naming
+    /// `--max-minutes` once the estimate passes this. Default [`DEFAULT_MAX_MINUTES`].
+    pub max_minutes: f64,
 }
 
 impl Default for BudgetSpec {
@@ -518,6 +533,7 @@ impl Default for BudgetSpec {
             criterion: 0.05,
             cost_cap: 4.0,
             reference_steps: None,
+            max_minutes: DEFAULT_MAX_MINUTES,
         }
     }
 }
@@ -562,10 +578,20 @@ pub struct Trial {
     /// The largest final residual of a step over the run, in the solver's measure
     /// (`summary.json`'s `max_step_residual`); `None` for explicit.
     pub residual: Option<f64>,
-    /// Errors against the reference (meaningful when stable).
+    /// Errors against the reference (meaningful when `measured`; zero otherwise).
     pub errors: Errors,
-    /// The ranking quantity's value (`None` when undefined or unstable).
+    /// The ranking quantity's value (`None` when undefined, unstable or not measured).
     pub rank_value: Option<f64>,
+    /// Its errors were measured: it is stable, every value its errors read (and the
+    /// reference's) is finite, and so is every error. Only a measured setting can be a row's
+    /// best; the others rank after every measured one.
+    #[serde(default)]
+    pub measured: bool,
+    /// What its numbers do not say: why a stable setting's errors were not measured (`its
+    /// von Mises stress is not finite in 908 places (...)`, `the reference's ...`), and that
+    /// the largest residual of its steps was not finite (then `residual` is `None`).
+    #[serde(default)]
+    pub note: Option<String>,
 }
 
 /// One energy x framework row of the table.
@@ -592,8 +618,14 @@ pub struct Reference {
     pub energy: EnergyKind,
     /// The windows found on it.
     pub windows: Windows,
-    /// The reference at twice its step against it: its own error to first order.
+    /// The reference at twice its step against it: its own error to first order (zero when
+    /// `note` says it could not be estimated).
     pub error: Errors,
+    /// Why its own error is not given (a value of either run that is not finite, the coarse
+    /// run did not complete), or why nothing was measured against it (the reference's `...`
+    /// is not finite).
+    #[serde(default)]
+    pub note: Option<String>,
 }
 
 /// The whole answer.
@@ -739,77 +771,407 @@ fn with_targets(scene: &LoadedScene, mut layout: Layout, frame_dt: f64) -> Layou
     layout
 }
 
+/// Default of [`BudgetSpec::max_minutes`] (`--max-minutes`): ten minutes. `fem2d budget
+/// case-a` (five energies over 2 s) takes 85-90 s and `fem2d budget case-d` 46-47 s on this
+/// 2-core VM with other builds running (measured 2026-11-27), and their estimates
+/// are at most 3.1 and 0.8 minutes, so ten minutes leaves room for a slower or
+/// busier machine or a few times the duration, and stops a run of hours (`--haptics
+/// --duration 100`: a hundred thousand frames) before it starts.
+pub const DEFAULT_MAX_MINUTES: f64 = 10.0;
+
+/// The most frames a budget compares.
+pub const MAX_FRAMES: u64 = 100_000;
+
+/// The highest `--fps`: a frame of at least a nanosecond.
+pub const MAX_FPS: f64 = 1e9;
+
+/// `--budget-ms` bounds: from a nanosecond (the clock's resolution) to 1000 s a frame.
+pub const BUDGET_MS_RANGE: [f64; 2] = [1e-6, 1e6];
+
+/// The smallest `--settle`: a smaller fraction of the peak kinetic energy is round-off.
+pub const MIN_SETTLE: f64 = 1e-9;
+
+/// `--criterion` bounds (a relative error: 0.05 is 5 %).
+pub const CRITERION_RANGE: [f64; 2] = [1e-9, 100.0];
+
+/// The pre-flight's seconds per reference step per triangle (implicit Euler with Newton to
+/// [`REFERENCE_TOLERANCE`], on one thread), without contact: a quarter of the cheapest
+/// measured on this VM (case A's linear energy, 7.6e-7 s; its Neo-Hookean 2.9e-6 s), so the
+/// estimate before anything runs refuses only what would take longer on a machine four times
+/// as fast.
+pub const PREFLIGHT_SECONDS_PER_STEP_TRIANGLE: f64 = 2e-7;
+
+/// The same with contact (barrier contact, more Newton iterations a step): a quarter of case
+/// D's 1.7e-5 s.
+pub const PREFLIGHT_SECONDS_PER_STEP_TRIANGLE_CONTACT: f64 = 4e-6;
+
+/// A ladder's estimated cost in runs at the budget (`budget x frames` of stepping): it climbs
+/// until a rung costs twice the budget, and the run around the stepping (recording, errors)
+/// adds to it. Measured: 4.7 on case D (16 ladders, 27 s), where the ladders are cut by cost.
+pub const LADDER_BUDGET_RUNS: f64 = 5.0;
+
+/// The ladders' estimated cost of one energy over its reference's, when the ladders are not
+/// cut by cost (a small mesh, a large budget). Measured on case A: 1.4 to 2.6 (Neo-Hookean
+/// 14.3 s against 8.4 s).
+pub const LADDERS_OVER_REFERENCE: f64 = 3.0;
+
+/// What a budget runs, its settings checked.
+struct Plan {
+    energies: Vec<EnergyKind>,
+    frame_dt: f64,
+    frames: u64,
+    /// Steps per frame of the (finer) reference.
+    reference_per_frame: u64,
+    /// The scene has a ground or obstacles.
+    contact: bool,
+}
+
+/// Where the simulated duration came from, for messages.
+enum DurationFrom {
+    Flag,
+    Scene(&'static str),
+}
+
+impl Plan {
+    /// Check every setting of `spec` on `base`, naming the flag (or the scene key) and the
+    /// value of the first that is wrong.
+    fn new(base: &LoadedScene, spec: &BudgetSpec) -> Result<Plan, SceneError> {
+        use fem_core::math::readable as r;
+        let usage = |m: String| Err(SceneError::Usage(m));
+        let s = &base.scene;
+        if !(spec.fps.is_finite() && spec.fps > 0.0) {
+            return usage(format!(
+                "--fps {}: must be a finite number > 0",
+                r(spec.fps)
+            ));
+        }
+        if spec.fps > MAX_FPS {
+            return usage(format!(
+                "--fps {}: must be at most {MAX_FPS:e} (a frame of at least 1 ns)",
+                r(spec.fps)
+            ));
+        }
+        let frame_dt = 1.0 / spec.fps;
+        if !frame_dt.is_finite() {
+            return usage(format!(
+                "--fps {}: its frame, 1/fps = {} s, is not a finite number of seconds",
+                r(spec.fps),
+                r(frame_dt)
+            ));
+        }
+        if !(spec.budget_ms.is_finite() && spec.budget_ms > 0.0) {
+            return usage(format!(
+                "--budget-ms {}: must be a finite number > 0",
+                r(spec.budget_ms)
+            ));
+        }
+        if !(BUDGET_MS_RANGE[0]..=BUDGET_MS_RANGE[1]).contains(&spec.budget_ms) {
+            return usage(format!(
+                "--budget-ms {}: must be from {:e} ms (1 ns) to {:e} ms (1000 s) per frame",
+                r(spec.budget_ms),
+                BUDGET_MS_RANGE[0],
+                BUDGET_MS_RANGE[1]
+            ));
+        }
+        if !(spec.settle > 0.0 && spec.settle < 1.0) {
+            return usage(format!(
+                "--settle {}: must be in the open interval (0, 1)",
+                r(spec.settle)
+            ));
+        }
+        if spec.settle < MIN_SETTLE {
+            return usage(format!(
+                "--settle {}: must be at least {MIN_SETTLE:e} (a smaller fraction of the peak \
+                 kinetic energy is round-off)",
+                r(spec.settle)
+            ));
+        }
+        if !(spec.criterion.is_finite() && spec.criterion > 0.0) {
+            return usage(format!(
+                "--criterion {}: must be a finite number > 0",
+                r(spec.criterion)
+            ));
+        }
+        if !(CRITERION_RANGE[0]..=CRITERION_RANGE[1]).contains(&spec.criterion) {
+            return usage(format!(
+                "--criterion {}: must be from {:e} to {} (a relative error: 0.05 is 5 %)",
+                r(spec.criterion),
+                CRITERION_RANGE[0],
+                CRITERION_RANGE[1]
+            ));
+        }
+        if !(spec.cost_cap.is_finite() && spec.cost_cap >= 1.0) {
+            return usage(format!(
+                "cost cap {}: must be a finite number >= 1",
+                r(spec.cost_cap)
+            ));
+        }
+        if !(spec.max_minutes.is_finite() && spec.max_minutes > 0.0) {
+            return usage(format!(
+                "--max-minutes {}: must be a finite number > 0",
+                r(spec.max_minutes)
+            ));
+        }
+        if spec.frameworks.is_empty() {
+            return usage("--frameworks: names no framework".into());
+        }
+        for (k, f) in spec.frameworks.iter().enumerate() {
+            if spec.frameworks[..k].contains(f) {
+                return usage(format!("--frameworks: {} is listed twice", f.name()));
+            }
+        }
+        for (k, e) in spec.energies.iter().enumerate() {
+            if spec.energies[..k].contains(e) {
+                return usage(format!("--energies: {} is listed twice", e.name()));
+            }
+        }
+        let defaults = s.budget.clone().unwrap_or_default();
+        let energies: Vec<EnergyKind> = if !spec.energies.is_empty() {
+            spec.energies.clone()
+        } else if !defaults.energies.is_empty() {
+            defaults.energies.clone()
+        } else {
+            EnergyKind::ALL.to_vec()
+        };
+        let reference_steps = spec.reference_steps.or(defaults.reference_steps);
+        if let Some(n) = reference_steps
+            && !(2..=10_000).contains(&n)
+        {
+            return usage(format!(
+                "--reference-steps {n}: must be an integer from 2 to 10000"
+            ));
+        }
+        let contact = s.ground.is_some() || !s.obstacles.is_empty();
+        let reference_per_frame = reference_steps.unwrap_or(if contact { 10 } else { 100 });
+        let (duration, from) = match (spec.duration, defaults.duration) {
+            (Some(d), _) => (d, DurationFrom::Flag),
+            (None, Some(d)) => (d, DurationFrom::Scene("budget.duration")),
+            (None, None) => (
+                s.solver.dt * s.solver.steps as f64,
+                DurationFrom::Scene("solver.steps x solver.dt"),
+            ),
+        };
+        let fps = r(spec.fps);
+        match from {
+            DurationFrom::Flag if !(duration.is_finite() && duration > 0.0) => {
+                return usage(format!(
+                    "--duration {}: must be a finite number > 0",
+                    r(duration)
+                ));
+            }
+            DurationFrom::Scene(key) if !(duration.is_finite() && duration > 0.0) => {
+                return usage(format!(
+                    "{}: {key} = {} s: must be a finite number > 0; set --duration",
+                    base.origin,
+                    r(duration)
+                ));
+            }
+            _ => {}
+        }
+        // A whole number of frames, at least one: a duration shorter than a frame is refused,
+        // not stretched to one.
+        if duration < frame_dt * (1.0 - 1e-9) {
+            return usage(match from {
+                DurationFrom::Flag => format!(
+                    "--duration {}: shorter than one frame at --fps {fps} ({} s); make it at \
+                     least one frame or raise --fps",
+                    r(duration),
+                    r(frame_dt)
+                ),
+                DurationFrom::Scene(key) => format!(
+                    "--fps {fps}: one frame ({} s) is longer than the scene's duration ({key} = \
+                     {} s); raise --fps or set --duration to at least one frame",
+                    r(frame_dt),
+                    r(duration)
+                ),
+            });
+        }
+        let count = (duration / frame_dt).round();
+        if count > MAX_FRAMES as f64 {
+            let n = if count.is_finite() {
+                r(count)
+            } else {
+                "more than 1e308".into()
+            };
+            return usage(match from {
+                DurationFrom::Flag => format!(
+                    "--duration {}: {n} frames at --fps {fps}; at most {MAX_FRAMES}",
+                    r(duration)
+                ),
+                DurationFrom::Scene(key) => format!(
+                    "--fps {fps}: {n} frames over the scene's duration ({key} = {} s); at \
+                     most {MAX_FRAMES} (set --duration)",
+                    r(duration)
+                ),
+            });
+        }
+        Ok(Plan {
+            energies,
+            frame_dt,
+            frames: count as u64,
+            reference_per_frame,
+            contact,
+        })
+    }
+}
+
+/// The wall-time estimate of a budget, to stop one that would run for hours before it does
+/// (`--max-minutes`, [`BudgetSpec::max_minutes`]). Work is proportional to simulated steps x
+/// triangles, and per energy it is the reference and the ladders:
+///
+/// - the reference: its steps x the mesh's triangles x a cost per step and triangle, before
+///   anything runs [`PREFLIGHT_SECONDS_PER_STEP_TRIANGLE`] (with contact
+///   [`PREFLIGHT_SECONDS_PER_STEP_TRIANGLE_CONTACT`]; deterministic: counts only), after
+///   the first reference the one measured (the coarse reference runs alongside on a second
+///   thread and is not counted);
+/// - the ladders: the smaller of [`LADDER_BUDGET_RUNS`] runs at the budget per ladder (they
+///   are cut by cost) and [`LADDERS_OVER_REFERENCE`] times the reference (they are not: a
+///   small mesh, a large budget).
+///
+/// After each energy the estimate is the time taken so far, extrapolated over the energies
+/// left.
+struct TimeModel {
+    frames: u64,
+    budget_s: f64,
+    triangles: usize,
+    reference_steps: u64,
+    /// The pre-flight's cost of a reference step per triangle.
+    seconds_per_step_triangle: f64,
+    /// Ladders per energy (none for a framework that cannot run it).
+    ladders: Vec<usize>,
+    max_minutes: f64,
+}
+
+impl TimeModel {
+    fn new(base: &LoadedScene, spec: &BudgetSpec, plan: &Plan) -> Result<TimeModel, SceneError> {
+        let mesh = fem_scene::build::build_mesh(base, &FileSource::for_scene(base))?;
+        let ladders = plan
+            .energies
+            .iter()
+            .map(|&e| {
+                spec.frameworks
+                    .iter()
+                    .filter(|&&f| cannot_run(base, e, f).is_none())
+                    .map(|f| {
+                        let mut groups: Vec<u8> = f.ladder().iter().map(|s| s.group).collect();
+                        groups.dedup();
+                        groups.len()
+                    })
+                    .sum()
+            })
+            .collect();
+        Ok(TimeModel {
+            frames: plan.frames,
+            budget_s: spec.budget_ms * 1e-3,
+            triangles: mesh.triangles().len(),
+            reference_steps: plan.frames * plan.reference_per_frame,
+            seconds_per_step_triangle: if plan.contact {
+                PREFLIGHT_SECONDS_PER_STEP_TRIANGLE_CONTACT
+            } else {
+                PREFLIGHT_SECONDS_PER_STEP_TRIANGLE
+            },
+            ladders,
+            max_minutes: spec.max_minutes,
+        })
+    }
+
+    /// Seconds of one energy's ladders.
+    fn ladders(&self, ladders: usize, reference_s: f64) -> f64 {
+        (ladders as f64 * LADDER_BUDGET_RUNS * self.budget_s * self.frames as f64)
+            .min(LADDERS_OVER_REFERENCE * reference_s)
+    }
+
+    /// Seconds of the energies from the `from`-th on, each reference taking `reference_s`.
+    fn energies(&self, from: usize, reference_s: f64) -> f64 {
+        self.ladders[from.min(self.ladders.len())..]
+            .iter()
+            .map(|&l| reference_s + self.ladders(l, reference_s))
+            .sum()
+    }
+
+    /// The estimate before anything runs.
+    fn preflight(&self) -> Result<String, SceneError> {
+        let reference_s =
+            (self.reference_steps as f64) * self.triangles as f64 * self.seconds_per_step_triangle;
+        self.check(
+            self.energies(0, reference_s),
+            &format!(
+                "estimated before running, from the step counts: {} x (a reference of {} \
+                 steps on {} triangles + up to {} ladders of settings over {} frames)",
+                match self.ladders.len() {
+                    1 => "1 energy".to_owned(),
+                    n => format!("{n} energies"),
+                },
+                self.reference_steps,
+                self.triangles,
+                self.ladders.iter().max().copied().unwrap_or(0),
+                self.frames
+            ),
+        )
+    }
+
+    /// Refuse when `seconds` pass the limit; otherwise the estimate in words, for the
+    /// progress.
+    fn check(&self, seconds: f64, how: &str) -> Result<String, SceneError> {
+        let minutes = seconds / 60.0;
+        let about = minutes_text(seconds);
+        if minutes <= self.max_minutes {
+            return Ok(format!(
+                "about {about} in all, {how} (--max-minutes {})",
+                fem_core::math::readable(self.max_minutes)
+            ));
+        }
+        Err(self.passed(&format!("the budget would take about {about} ({how})")))
+    }
+
+    /// The error once the limit is passed: `what` happened.
+    fn passed(&self, what: &str) -> SceneError {
+        SceneError::Usage(format!(
+            "--max-minutes {}: {what}; shorten --duration, choose fewer --frameworks or \
+             --energies, or raise --max-minutes",
+            fem_core::math::readable(self.max_minutes)
+        ))
+    }
+}
+
+/// `seconds` in minutes, for messages (`0.038 minutes (2.3 s)`, `3.1 minutes`, `107 minutes`).
+fn minutes_text(seconds: f64) -> String {
+    let minutes = seconds / 60.0;
+    if minutes < 0.1 {
+        format!("{minutes:.3} minutes ({seconds:.1} s)")
+    } else if minutes < 10.0 {
+        format!("{minutes:.1} minutes")
+    } else if minutes < 1e6 {
+        format!("{minutes:.0} minutes")
+    } else {
+        format!("{minutes:.1e} minutes")
+    }
+}
+
 /// Run the budget comparison of `base` (see the module docs); `progress` is told what runs.
+///
+/// Every setting is checked first, the error naming its flag and value (`--fps 1e-320:
+/// ...`). The wall time is estimated before anything runs, after each energy's reference and
+/// after each energy, and the comparison stops with an error naming
+/// `--max-minutes` once the estimate passes [`BudgetSpec::max_minutes`].
 pub fn budget(
     base: &LoadedScene,
     spec: &BudgetSpec,
     mut progress: impl FnMut(&str),
 ) -> Result<BudgetRun, SceneError> {
+    let started = std::time::Instant::now();
     let s = &base.scene;
-    if !(spec.fps.is_finite() && spec.fps > 0.0) {
-        return Err(SceneError::Usage(format!(
-            "--fps {}: must be a finite number > 0",
-            spec.fps
-        )));
-    }
-    if !(spec.budget_ms.is_finite() && spec.budget_ms > 0.0) {
-        return Err(SceneError::Usage(format!(
-            "--budget-ms {}: must be a finite number > 0",
-            spec.budget_ms
-        )));
-    }
-    if !(spec.settle > 0.0 && spec.settle < 1.0) {
-        return Err(SceneError::Usage(format!(
-            "--settle {}: must be in the open interval (0, 1)",
-            spec.settle
-        )));
-    }
-    if !(spec.criterion.is_finite() && spec.criterion > 0.0) {
-        return Err(SceneError::Usage(format!(
-            "--criterion {}: must be a finite number > 0",
-            spec.criterion
-        )));
-    }
-    if !(spec.cost_cap.is_finite() && spec.cost_cap >= 1.0) {
-        return Err(SceneError::Usage(format!(
-            "cost cap {}: must be a finite number >= 1",
-            spec.cost_cap
-        )));
-    }
-    let defaults = s.budget.clone().unwrap_or_default();
-    let energies: Vec<EnergyKind> = if !spec.energies.is_empty() {
-        spec.energies.clone()
-    } else if !defaults.energies.is_empty() {
-        defaults.energies.clone()
-    } else {
-        EnergyKind::ALL.to_vec()
-    };
-    let reference_steps = spec.reference_steps.or(defaults.reference_steps);
-    if reference_steps.is_some_and(|n| !(2..=10_000).contains(&n)) {
-        return Err(SceneError::Usage(format!(
-            "--reference-steps {}: must be an integer from 2 to 10000",
-            reference_steps.unwrap_or_default()
-        )));
-    }
-    let frame_dt = 1.0 / spec.fps;
-    let duration = spec
-        .duration
-        .or(defaults.duration)
-        .unwrap_or(s.solver.dt * s.solver.steps as f64);
-    if !(duration.is_finite() && duration > 0.0) {
-        return Err(SceneError::Usage(format!(
-            "--duration {duration}: must be a finite number > 0"
-        )));
-    }
-    let frames = (duration / frame_dt).round().max(1.0) as u64;
-    if frames > 100_000 {
-        return Err(SceneError::Usage(format!(
-            "{frames} frames ({duration} s at {} frames per second): at most 100000",
-            spec.fps
-        )));
-    }
+    let plan = Plan::new(base, spec)?;
+    let model = TimeModel::new(base, spec, &plan)?;
+    progress(&format!("wall time: {}", model.preflight()?));
+    let Plan {
+        energies,
+        frame_dt,
+        frames,
+        reference_per_frame: per_frame,
+        ..
+    } = plan;
     let rank_by = spec.rank_by.unwrap_or_else(|| RankBy::default_for(base));
-    let contact = s.ground.is_some() || !s.obstacles.is_empty();
     let cap = spec.cost_cap * spec.budget_ms * 1e-3 * frames as f64;
     let mut lay = Layout::default();
     let mut trials = Vec::new();
@@ -817,12 +1179,12 @@ pub fn budget(
     let mut kept = Vec::new();
     let mut references = Vec::new();
     let mut reference_label = String::new();
-    for &energy in &energies {
+    let mut reference_seconds = Vec::new();
+    for (k, &energy) in energies.iter().enumerate() {
         // The reference of this energy: implicit Euler converged to round-off, at a hundredth
         // of the frame step; with contact at a tenth (its barrier contact is the framework's
         // converged contact: the penalty of explicit FEM penetrates by a depth its stiffness
         // sets, whatever the step). Then again at twice that step, for its own error.
-        let per_frame: u64 = reference_steps.unwrap_or(if contact { 10 } else { 100 });
         let values = vec![
             (
                 "tolerance".to_owned(),
@@ -838,7 +1200,17 @@ pub fn budget(
                 frame_dt / per as f64
             )
         };
-        let run_reference = |per: u64| -> Result<Recorded, SceneError> {
+        // The reference has no cost cap, but it may not outlast what is left of
+        // `--max-minutes`.
+        let left = spec.max_minutes * 60.0 - started.elapsed().as_secs_f64();
+        let too_long = || {
+            model.passed(&format!(
+                "{energy}'s reference was stopped after {} in all",
+                minutes_text(started.elapsed().as_secs_f64())
+            ))
+        };
+        // `Ok(Err(why))`: the reference did not complete.
+        let run_reference = |per: u64| -> Result<Result<Recorded, String>, SceneError> {
             let scene = variant(
                 base,
                 energy,
@@ -847,40 +1219,99 @@ pub fn budget(
                 frame_dt / per as f64,
                 frames * per,
             )?;
-            let Ok((result, trajectory, layout)) = record(&scene, per, None)? else {
-                unreachable!("a run without a cap is never stopped");
+            let Ok((result, trajectory, layout)) = record(&scene, per, Some(left.max(0.0)))? else {
+                return Err(too_long());
             };
             if result.summary.blew_up {
-                return Err(SceneError::Scene(format!(
-                    "{}: the reference run ({}, {energy}) did not complete: {}",
-                    base.origin,
+                return Ok(Err(format!(
+                    "the reference run ({}, {energy}) did not complete: {}",
                     label_of(per),
                     result.summary.blow_up_message.clone().unwrap_or_default()
                 )));
             }
-            Ok((result, trajectory, layout))
+            Ok(Ok((result, trajectory, layout)))
         };
         progress(&format!(
             "{energy}: reference ({}; and at half as many steps, alongside)",
             label_of(per_frame)
         ));
+        let reference_started = std::time::Instant::now();
         // The two references are not timed: they run side by side, each on one thread.
         let (fine, coarse) = std::thread::scope(|scope| {
             let coarse = scope.spawn(|| run_reference(per_frame / 2));
             let fine = run_reference(per_frame);
             (fine, coarse.join())
         });
-        let (_, reference, fine_layout) = fine?;
-        let (_, coarse, _) =
+        let coarse =
             coarse.map_err(|_| SceneError::Scene("the coarse reference run panicked".into()))??;
         reference_label = label_of(per_frame);
+        let (_, reference, fine_layout) =
+            match fine? {
+                Ok(fine) => fine,
+                Err(why) => {
+                    // Nothing to measure against: every framework of this energy says so, and
+                    // none is run.
+                    for &framework in &spec.frameworks {
+                        rows.push(Row {
+                            energy,
+                            framework,
+                            cannot_run: Some(cannot_run(base, energy, framework).unwrap_or_else(
+                                || format!("no reference to measure against: {why}"),
+                            )),
+                            cheapest: None,
+                            best: None,
+                        });
+                    }
+                    continue;
+                }
+            };
+        reference_seconds.push(reference_started.elapsed().as_secs_f64());
         lay = with_targets(base, fine_layout, frame_dt);
         let windows = Windows::find(&lay, &reference, spec.settle);
+        // A reference with a value that is not finite measures nothing.
+        let reference_note =
+            measure::non_finite(&lay, &reference).map(|w| format!("the reference's {w}"));
+        let (error, note) = match (&reference_note, &coarse) {
+            (Some(w), _) => (Errors::default(), Some(w.clone())),
+            (None, Err(why)) => (Errors::default(), Some(why.clone())),
+            (None, Ok((_, coarse, _))) => match measure::non_finite(&lay, coarse) {
+                Some(w) => (
+                    Errors::default(),
+                    Some(format!("the reference at half as many steps: {w}")),
+                ),
+                None => {
+                    let e = errors(&lay, &windows, coarse, &reference);
+                    if e.is_finite() {
+                        (e, None)
+                    } else {
+                        (
+                            Errors::default(),
+                            Some(
+                                "its error against itself at half as many steps overflowed".into(),
+                            ),
+                        )
+                    }
+                }
+            },
+        };
         references.push(Reference {
             energy,
             windows,
-            error: errors(&lay, &windows, &coarse, &reference),
+            error,
+            note,
         });
+        // The estimate once this reference took what it took.
+        let mean_reference = reference_seconds.iter().sum::<f64>() / reference_seconds.len() as f64;
+        let estimate = model.check(
+            started.elapsed().as_secs_f64()
+                + model.ladders(model.ladders[k], mean_reference)
+                + model.energies(k + 1, mean_reference),
+            &format!(
+                "estimated after {energy}'s reference, which took {:.1} s",
+                reference_seconds.last().copied().unwrap_or_default()
+            ),
+        )?;
+        progress(&format!("wall time: {estimate}"));
         let key = |t: &Trial| {
             (
                 t.rank_value.unwrap_or(f64::INFINITY),
@@ -928,8 +1359,10 @@ pub fn budget(
                     residual: None,
                     errors: Errors::default(),
                     rank_value: None,
+                    measured: false,
+                    note: None,
                 };
-                let trajectory = match record(&scene, per, Some(cap))? {
+                let (trajectory, residual_note) = match record(&scene, per, Some(cap))? {
                     Err(OverCap) => {
                         trial.over_cap = true;
                         trial.failure = Some(format!(
@@ -946,20 +1379,40 @@ pub fn budget(
                         trial.failure = s.blow_up_message.clone();
                         trial.ms_per_frame = 1e3 * s.step_seconds / frames as f64;
                         trial.iterations_per_frame = s.solver_iterations as f64 / frames as f64;
-                        trial.residual = s.max_step_residual;
-                        trajectory
+                        // A residual that is not finite is not written as a number.
+                        trial.residual = s.max_step_residual.filter(|r| r.is_finite());
+                        let note = s
+                            .max_step_residual
+                            .filter(|r| !r.is_finite())
+                            .map(|_| "its largest step residual is not finite".to_owned());
+                        (trajectory, note)
                     }
                 };
                 if trial.stable {
-                    trial.errors = errors(&lay, &windows, &trajectory, &reference);
-                    trial.rank_value = rank_by.value(&trial.errors, &windows);
+                    measure_trial(
+                        &mut trial,
+                        &lay,
+                        &windows,
+                        &trajectory,
+                        &reference,
+                        reference_note.as_deref(),
+                        rank_by,
+                    );
+                }
+                if let Some(r) = residual_note {
+                    trial.note = Some(match trial.note.take() {
+                        Some(w) => format!("{w}; {r}"),
+                        None => r,
+                    });
                 }
                 trials.push(trial.clone());
                 let ms = trial.ms_per_frame;
                 if trial.stable && cheapest.is_none() {
                     cheapest = Some(trial.clone());
                 }
-                if trial.stable
+                // Only a measured rung can be a row's best: one whose error is unknown ranks
+                // after every measured one.
+                if trial.measured
                     && ms <= spec.budget_ms
                     && best.as_ref().is_none_or(|(b, _)| {
                         key(&trial).partial_cmp(&key(b)).is_some_and(|o| o.is_lt())
@@ -986,7 +1439,23 @@ pub fn budget(
             });
         }
         kept.push((format!("{}-reference", energy.name()), reference));
-        kept.push((format!("{}-reference-coarse", energy.name()), coarse));
+        if let Ok((_, coarse, _)) = coarse {
+            kept.push((format!("{}-reference-coarse", energy.name()), coarse));
+        }
+        // The time so far, extrapolated over the energies left.
+        let done = k + 1;
+        if done < energies.len() {
+            let elapsed = started.elapsed().as_secs_f64();
+            let estimate = model.check(
+                elapsed + (energies.len() - done) as f64 * elapsed / done as f64,
+                &format!(
+                    "estimated after {done} of {} energies, which took {}",
+                    energies.len(),
+                    minutes_text(elapsed)
+                ),
+            )?;
+            progress(&format!("wall time: {estimate}"));
+        }
     }
     // Rank within each energy: the best setting's ranking quantity first.
     rows.sort_by(|a, b| {
@@ -1031,8 +1500,42 @@ pub fn budget(
     })
 }
 
+/// Measure a stable `trial` against the reference: its errors and ranking value, or in its
+/// note why they cannot be measured (a value of the reference or of the run that is not
+/// finite, an error that overflowed); then it is not `measured` and its errors stay zero.
+fn measure_trial(
+    trial: &mut Trial,
+    lay: &Layout,
+    windows: &Windows,
+    trajectory: &Trajectory,
+    reference: &Trajectory,
+    reference_note: Option<&str>,
+    rank_by: RankBy,
+) {
+    let why = reference_note
+        .map(str::to_owned)
+        .or_else(|| measure::non_finite(lay, trajectory).map(|w| format!("its {w}")));
+    if let Some(w) = why {
+        trial.note = Some(w);
+        return;
+    }
+    let e = errors(lay, windows, trajectory, reference);
+    if !e.is_finite() {
+        trial.note = Some("an error against the reference overflowed (is not finite)".into());
+        return;
+    }
+    trial.rank_value = rank_by.value(&e, windows);
+    trial.errors = e;
+    trial.measured = true;
+}
+
+/// Scientific notation with three digits; 0 as `0` (a body at rest: no error at all).
 pub(crate) fn sci(x: f64) -> String {
-    format!("{x:.2e}")
+    if x == 0.0 {
+        "0".into()
+    } else {
+        format!("{x:.2e}")
+    }
 }
 
 pub(crate) fn fmt_num(x: f64) -> String {
@@ -1050,6 +1553,7 @@ pub(crate) fn pct(x: Option<f64>) -> String {
     match x {
         None => "-".into(),
         Some(x) if !x.is_finite() => "-".into(),
+        Some(0.0) => "0 %".into(),
         Some(x) if x >= 0.1 => format!("{:.0} %", 100.0 * x),
         Some(x) if x >= 0.01 => format!("{:.1} %", 100.0 * x),
         Some(x) => format!("{:.2} %", 100.0 * x),
@@ -1079,7 +1583,7 @@ impl BudgetRun {
         let json = serde_json::to_string_pretty(&self.budget)
             .map_err(|e| SceneError::Io(format!("budget.json: {e}")))?;
         put("budget.json", json.as_bytes())?;
-        // A chart with nothing to draw (no stable setting at all) is not written.
+        // A chart with nothing to draw (no measured setting at all) is not written.
         for (prefix, energy, chart) in self
             .budget
             .charts()
@@ -1090,7 +1594,7 @@ impl BudgetRun {
                     .into_iter()
                     .map(|(e, c)| ("phases", e, c)),
             )
-            .filter(|(_, _, c)| c.series.iter().any(|s| !s.points.is_empty()))
+            .filter(|(_, _, c)| drawable(c))
         {
             let svg = chart.to_svg().map_err(render)?;
             put(&format!("{prefix}-{}.svg", energy.name()), svg.as_bytes())?;

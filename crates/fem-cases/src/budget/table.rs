@@ -29,7 +29,47 @@ fn rank_column(rank: RankBy) -> &'static str {
     }
 }
 
+impl Trial {
+    /// What became of it, in words (the CSV's `status`): `measured` (with a remark: `measured;
+    /// its largest step residual is not finite`), `not measured: WHY`, `unstable: WHY` or `stopped:
+    /// ...` (over the cost cap).
+    pub fn status(&self) -> String {
+        if self.over_cap {
+            self.failure.clone().unwrap_or_else(|| "stopped".into())
+        } else if !self.stable {
+            format!(
+                "unstable: {}",
+                self.failure
+                    .as_deref()
+                    .unwrap_or("the run did not complete")
+            )
+        } else if !self.measured {
+            format!(
+                "not measured: {}",
+                self.note.as_deref().unwrap_or("no reason recorded")
+            )
+        } else {
+            match &self.note {
+                Some(n) => format!("measured; {n}"),
+                None => "measured".into(),
+            }
+        }
+    }
+}
+
 impl Budget {
+    /// The first stable setting of `framework` on `energy` within the budget whose errors
+    /// were not measured (when the row has no measured one, the table says why).
+    fn unmeasured_within(&self, energy: EnergyKind, framework: Framework) -> Option<&Trial> {
+        self.trials.iter().find(|t| {
+            t.energy == energy
+                && t.framework == framework
+                && t.stable
+                && !t.measured
+                && t.ms_per_frame <= self.budget_ms
+        })
+    }
+
     /// The reference of `energy`.
     pub fn reference_of(&self, energy: EnergyKind) -> Option<&Reference> {
         self.references.iter().find(|r| r.energy == energy)
@@ -49,7 +89,7 @@ impl Budget {
         let candidates: Vec<&Trial> = self
             .trials
             .iter()
-            .filter(|t| t.energy == energy && t.stable && t.ms_per_frame <= self.budget_ms)
+            .filter(|t| t.energy == energy && t.measured && t.ms_per_frame <= self.budget_ms)
             .filter(|t| pair(t).is_some())
             .collect();
         if candidates.is_empty() {
@@ -140,16 +180,23 @@ impl Budget {
                 }
             }
             let e = r.rank_phase_errors();
-            let _ = writeln!(
-                s,
-                "\nThe reference's own error, estimated against itself at twice its step: \
-                 position RMS {} m, soft tissue stress {} (L2) and peak contact pressure {}, \
-                 {}.\n",
-                sci(r.error.whole.position_rms),
-                pct(e.and_then(|w| w.stress_l2)),
-                pct(e.and_then(|w| w.pressure_peak)),
-                RankBy::Stress.effective_phase(&r.windows).name()
-            );
+            match &r.note {
+                Some(why) => {
+                    let _ = writeln!(s, "\nThe reference's own error is not given: {why}.\n");
+                }
+                None => {
+                    let _ = writeln!(
+                        s,
+                        "\nThe reference's own error, estimated against itself at twice its \
+                         step: position RMS {} m, soft tissue stress {} (L2) and peak contact \
+                         pressure {}, {}.\n",
+                        sci(r.error.whole.position_rms),
+                        pct(e.and_then(|w| w.stress_l2)),
+                        pct(e.and_then(|w| w.pressure_peak)),
+                        RankBy::Stress.effective_phase(&r.windows).name()
+                    );
+                }
+            }
         }
         let rank = self.rank_by;
         let _ = writeln!(
@@ -188,14 +235,25 @@ impl Budget {
                         t.errors.whole.inverted
                     )
                 }
-                None => "none within the budget | | | | | | | | | | | ".into(),
+                None => match self.unmeasured_within(r.energy, r.framework) {
+                    Some(t) => format!(
+                        "none measured within the budget ({}: {}) | | | | | | | | | | | ",
+                        t.setting,
+                        t.note.as_deref().unwrap_or("not measured")
+                    ),
+                    None => "none within the budget | | | | | | | | | | | ".into(),
+                },
             };
             let cheapest = match &r.cheapest {
                 Some(t) => format!(
                     "{} | {} | {}",
                     t.setting,
                     fmt_num(t.ms_per_frame),
-                    rank_text(rank, t.rank_value)
+                    if t.measured {
+                        rank_text(rank, t.rank_value)
+                    } else {
+                        "not measured".into()
+                    }
                 ),
                 None if self
                     .trials
@@ -337,8 +395,10 @@ impl Budget {
                 "| {} | {:e} | {} | {} | {} | {} | {} | {} |",
                 t.framework.name(),
                 t.tolerance.unwrap_or(f64::NAN),
-                if t.stable {
+                if t.measured {
                     "yes".to_owned()
+                } else if t.stable {
+                    "yes, not measured".to_owned()
                 } else if t.over_cap {
                     "stopped (cost)".to_owned()
                 } else {
@@ -352,7 +412,7 @@ impl Budget {
                 iterations_text(t),
                 t.residual.map_or("-".into(), sci),
                 rank_text(self.rank_by, t.rank_value),
-                if t.stable {
+                if t.measured {
                     sci(t.errors.whole.position_rms)
                 } else {
                     "-".into()
@@ -363,7 +423,9 @@ impl Budget {
 
     /// Every trial, one CSV row each (RFC 4180: a field with a comma, a quote or a line break
     /// is quoted, as the settings' labels `bdf2, 10 iterations` and `cg-jacobi, 25 iterations`
-    /// are).
+    /// are). Every number is finite: an unknown one (the cost of a stopped rung, the errors of
+    /// a rung that was not measured) is an empty cell, and the last column, `status`, says why
+    /// ([`Trial::status`]).
     pub fn to_csv(&self) -> String {
         let mut s = String::from(
             "energy,framework,setting,tolerance,stable,over_cap,ms_per_frame,iterations_per_frame,residual,rank_value,position_rms,position_max,area,inverted",
@@ -374,34 +436,49 @@ impl Budget {
                 ",{p}_position_rms,{p}_stress_l2,{p}_stress_peak,{p}_pressure_peak"
             );
         }
-        s.push('\n');
-        let opt = |x: Option<f64>| x.map_or(String::new(), |v| v.to_string());
+        s.push_str(",status\n");
+        let num = |x: f64| {
+            if x.is_finite() {
+                x.to_string()
+            } else {
+                String::new()
+            }
+        };
+        let opt = |x: Option<f64>| x.map_or(String::new(), num);
         for t in &self.trials {
             let _ = write!(
                 s,
-                "{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+                "{},{},{},{},{},{},{},{},{},{}",
                 t.energy,
                 t.framework.name(),
                 csv_field(&t.setting),
                 opt(t.tolerance),
                 t.stable,
                 t.over_cap,
-                t.ms_per_frame,
-                t.iterations_per_frame,
+                num(t.ms_per_frame),
+                num(t.iterations_per_frame),
                 opt(t.residual),
                 opt(t.rank_value),
-                t.errors.whole.position_rms,
-                t.errors.whole.position_max,
-                t.errors.whole.area,
-                t.errors.whole.inverted
             );
+            if t.measured {
+                let _ = write!(
+                    s,
+                    ",{},{},{},{}",
+                    num(t.errors.whole.position_rms),
+                    num(t.errors.whole.position_max),
+                    num(t.errors.whole.area),
+                    t.errors.whole.inverted
+                );
+            } else {
+                s.push_str(",,,,");
+            }
             for p in [Phase::Whole, Phase::Impact, Phase::Sustained] {
-                match t.errors.get(p) {
+                match t.errors.get(p).filter(|_| t.measured) {
                     Some(w) => {
                         let _ = write!(
                             s,
                             ",{},{},{},{}",
-                            w.position_rms,
+                            num(w.position_rms),
                             opt(w.stress_l2),
                             opt(w.stress_peak),
                             opt(w.pressure_peak)
@@ -410,13 +487,17 @@ impl Budget {
                     None => s.push_str(",,,,"),
                 }
             }
-            s.push('\n');
+            let _ = writeln!(s, ",{}", csv_field(&t.status()));
         }
         s
     }
 
-    /// One chart per energy: the ranking quantity against ms per frame for every stable
-    /// setting, a curve per framework (log-log), and the budget as a vertical line.
+    /// One chart per energy: the ranking quantity against ms per frame for every measured
+    /// setting, a curve per framework (log-log), and the budget as a vertical line. An error
+    /// of exactly 0 (a body at rest) cannot sit on a log axis: it is drawn at a floor, a
+    /// decade below the smallest error that is not 0 (1e-12 when none is), and a dotted line
+    /// at the floor says so in the legend (`error 0, drawn at 1e-12`). An energy with nothing
+    /// to draw (no measured setting) has a chart without points, which is not written.
     pub fn charts(&self) -> Vec<(EnergyKind, fem_render::chart::LineChart)> {
         use fem_render::chart::{LineChart, Scale, Series};
         let mut energies: Vec<EnergyKind> = Vec::new();
@@ -428,19 +509,46 @@ impl Budget {
         energies
             .into_iter()
             .map(|e| {
+                let per_framework: Vec<(Framework, Vec<(f64, f64)>)> = Framework::ALL
+                    .into_iter()
+                    .map(|f| {
+                        let points = self
+                            .trials
+                            .iter()
+                            .filter(|t| t.energy == e && t.framework == f && t.measured)
+                            .filter_map(|t| Some((t.ms_per_frame, t.rank_value?)))
+                            .filter(|p| {
+                                p.0 > 0.0 && p.0.is_finite() && p.1 >= 0.0 && p.1.is_finite()
+                            })
+                            .collect();
+                        (f, points)
+                    })
+                    .collect();
+                let values = || per_framework.iter().flat_map(|(_, p)| p.iter());
+                let smallest = values()
+                    .map(|p| p.1)
+                    .filter(|&v| v > 0.0)
+                    .fold(f64::INFINITY, f64::min);
+                let floor = values().any(|p| p.1 == 0.0).then(|| {
+                    if smallest.is_finite() {
+                        10f64.powf(smallest.log10().floor() - 1.0)
+                    } else {
+                        1e-12
+                    }
+                });
                 let mut series = Vec::new();
                 let (mut lo, mut hi) = (f64::INFINITY, 0.0f64);
-                for f in Framework::ALL {
-                    let points: Vec<(f64, f64)> = self
-                        .trials
-                        .iter()
-                        .filter(|t| t.energy == e && t.framework == f && t.stable)
-                        .filter_map(|t| Some((t.ms_per_frame, t.rank_value?)))
-                        .filter(|p| p.0 > 0.0 && p.1 > 0.0 && p.0.is_finite() && p.1.is_finite())
+                let (mut left, mut right) = (f64::INFINITY, 0.0f64);
+                for (f, points) in per_framework {
+                    let points: Vec<(f64, f64)> = points
+                        .into_iter()
+                        .map(|(x, y)| (x, if y == 0.0 { floor.unwrap_or(y) } else { y }))
                         .collect();
                     for p in &points {
                         lo = lo.min(p.1);
                         hi = hi.max(p.1);
+                        left = left.min(p.0);
+                        right = right.max(p.0);
                     }
                     if !points.is_empty() {
                         series.push(Series {
@@ -449,7 +557,22 @@ impl Budget {
                         });
                     }
                 }
+                if let Some(floor) = floor {
+                    series.push(Series {
+                        label: format!("error 0, drawn at {floor:e}"),
+                        points: vec![
+                            (left.min(self.budget_ms), floor),
+                            (right.max(self.budget_ms), floor),
+                        ],
+                    });
+                }
                 if lo.is_finite() {
+                    // A decade either side when every error is the same (a body at rest).
+                    let (lo, hi) = if hi > lo {
+                        (lo, hi)
+                    } else {
+                        (lo / 10.0, hi * 10.0)
+                    };
                     series.push(Series {
                         label: "budget".into(),
                         points: vec![(self.budget_ms, lo), (self.budget_ms, hi)],
@@ -487,6 +610,18 @@ impl Budget {
             })
             .collect()
     }
+}
+
+/// Whether `chart` has a point it can draw (finite, and positive on a log axis): a chart
+/// without one is not written.
+pub fn drawable(chart: &fem_render::chart::LineChart) -> bool {
+    use fem_render::chart::Scale;
+    let ok = |v: f64, s: Scale| v.is_finite() && (s == Scale::Linear || v > 0.0);
+    chart.series.iter().any(|s| {
+        s.points
+            .iter()
+            .any(|&(x, y)| ok(x, chart.x_scale) && ok(y, chart.y_scale))
+    })
 }
 
 fn iterations_text(t: &Trial) -> String {
@@ -565,6 +700,12 @@ impl BudgetRun {
                 .into_iter()
                 .flatten()
                 .collect();
+                // A body at rest has none of the three: the chart says so.
+                let at_rest = if series.is_empty() {
+                    " (at rest: no kinetic energy, stress or contact force to draw)"
+                } else {
+                    ""
+                };
                 let lo = floor;
                 let end = (traj.frames.len().saturating_sub(1)) as f64 * dt;
                 series.push(Series {
@@ -587,7 +728,7 @@ impl BudgetRun {
                     r.energy,
                     LineChart {
                         title: format!(
-                            "{}: {} reference, the windows the errors are taken over",
+                            "{}: {} reference, the windows the errors are taken over{at_rest}",
                             self.budget.scene, r.energy
                         ),
                         x_label: "time [s]".into(),
@@ -617,8 +758,29 @@ pub(super) fn sentence(budget: &Budget, energy: EnergyKind, spec: &BudgetSpec) -
         fmt_num(spec.fps),
         fmt_num(spec.budget_ms)
     );
+    let unmeasured = mine
+        .iter()
+        .find_map(|r| budget.unmeasured_within(energy, r.framework));
+    let mut reasons: Vec<&str> = Vec::new();
+    for why in mine.iter().filter_map(|r| r.cannot_run.as_deref()) {
+        if !reasons.contains(&why) {
+            reasons.push(why);
+        }
+    }
     let mut out = match within.first() {
-        None => format!("{head}: no framework has a stable setting within the budget."),
+        None if !mine.is_empty() && mine.iter().all(|r| r.cannot_run.is_some()) => {
+            format!("{head}: no framework can run it: {}.", reasons.join("; "))
+        }
+        None => match unmeasured {
+            Some(t) => format!(
+                "{head}: no framework has a measured stable setting within the budget ({} {}: \
+                 not measured: {}).",
+                t.framework.name(),
+                t.setting,
+                t.note.as_deref().unwrap_or("no reason recorded")
+            ),
+            None => format!("{head}: no framework has a stable setting within the budget."),
+        },
         Some(r) => {
             let b = r.best.as_ref().expect("filtered");
             let position = if rank == RankBy::Position {

@@ -466,6 +466,250 @@ fn rungs_over_the_cost_cap_are_stopped_and_reported() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// Writes `run` into a fresh directory and returns it with the files written; `budget.json`
+/// reads back equal (compared as JSON: NaN costs are `null`), and no written table carries a
+/// NaN or an infinity.
+fn write_and_read_back(run: &BudgetRun, tag: &str) -> (std::path::PathBuf, Vec<String>) {
+    let dir = std::env::temp_dir().join(format!("fem2d-budget-{tag}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let written = run.write(&dir, false).unwrap();
+    let text = std::fs::read_to_string(dir.join("budget.json")).unwrap();
+    let back: fem_cases::budget::Budget = serde_json::from_str(&text).unwrap();
+    assert_eq!(
+        serde_json::to_value(&back).unwrap(),
+        serde_json::to_value(&run.budget).unwrap()
+    );
+    for file in ["budget.csv", "budget.md", "budget.json"] {
+        let text = std::fs::read_to_string(dir.join(file)).unwrap();
+        for bad in ["NaN", "nan", "inf"] {
+            // `inf` inside a word (`information`) is not a number.
+            let hit = text.match_indices(bad).find(|(i, _)| {
+                let before = text[..*i].chars().last().unwrap_or(' ');
+                let after = text[i + bad.len()..].chars().next().unwrap_or(' ');
+                !before.is_alphabetic() && !after.is_alphabetic()
+            });
+            assert!(hit.is_none(), "{file} holds {bad}:\n{text}");
+        }
+    }
+    (dir, written)
+}
+
+/// A body at rest (case A without gravity): every error is exactly 0. The budget finishes and
+/// writes every output: the table states the errors as 0, and the Pareto chart draws them at
+/// a floor it names in its legend (a log axis has no 0).
+#[test]
+fn a_body_at_rest_writes_its_outputs_with_errors_of_zero() {
+    let base = load_case_or_file("case-a", &["gravity=[0,0]".to_owned()]).unwrap();
+    let spec = BudgetSpec {
+        duration: Some(0.2),
+        energies: vec![EnergyKind::NeoHookean],
+        frameworks: vec![Framework::Explicit, Framework::Implicit],
+        ..BudgetSpec::default()
+    };
+    let run = budget(&base, &spec, |_| {}).unwrap();
+    let b = &run.budget;
+    assert!(b.trials.iter().all(|t| t.measured), "{:?}", b.trials);
+    assert!(
+        b.trials
+            .iter()
+            .all(|t| t.rank_value == Some(0.0) && t.errors.whole.position_rms == 0.0),
+        "{:?}",
+        b.trials
+    );
+    let md = b.to_markdown();
+    assert!(md.contains("is the most accurate, 0 m,"), "{md}");
+    let charts = b.charts();
+    let zero = charts[0]
+        .1
+        .series
+        .iter()
+        .find(|s| s.label.starts_with("error 0, drawn at "))
+        .expect("the floor's legend entry");
+    assert_eq!(zero.label, "error 0, drawn at 1e-12");
+    let (dir, written) = write_and_read_back(&run, "rest");
+    for f in [
+        "pareto-neo-hookean.svg",
+        "pareto-neo-hookean.png",
+        "phases-neo-hookean.svg",
+    ] {
+        assert!(written.iter().any(|w| w == f), "{f} not in {written:?}");
+    }
+    let svg = std::fs::read_to_string(dir.join("pareto-neo-hookean.svg")).unwrap();
+    assert!(svg.contains("error 0, drawn at 1e-12"));
+    let csv = std::fs::read_to_string(dir.join("budget.csv")).unwrap();
+    assert!(
+        csv.lines().skip(1).all(|l| l.ends_with(",measured")),
+        "{csv}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A rung whose stress is not finite is not measured: case A with a Young's modulus of 1e300
+/// Pa, where VBD's few sweeps leave the beam strained and its von Mises stress overflows
+/// (and its residual, over a force scale of infinity, is not finite either). It says why in
+/// its note and the CSV's `status`, its numbers are empty cells, it is never a row's best,
+/// and it ranks after every measured rung; implicit Euler, which holds the stiff beam still
+/// as the reference does, is measured and ranked.
+#[test]
+fn unmeasurable_rungs_say_why_and_rank_after_every_measured_one() {
+    let base = load_case_or_file("case-a", &["material.youngs_modulus=1e300".to_owned()]).unwrap();
+    let spec = BudgetSpec {
+        duration: Some(0.1),
+        energies: vec![EnergyKind::NeoHookean],
+        frameworks: vec![Framework::Vbd, Framework::Implicit],
+        rank_by: Some(RankBy::Stress),
+        ..BudgetSpec::default()
+    };
+    let run = budget(&base, &spec, |_| {}).unwrap();
+    let b = &run.budget;
+    let vbd: Vec<_> = b
+        .trials
+        .iter()
+        .filter(|t| t.framework == Framework::Vbd && t.stable)
+        .collect();
+    assert!(!vbd.is_empty());
+    for t in &vbd {
+        assert!(!t.measured, "{t:?}");
+        assert!(t.rank_value.is_none() && t.errors == Default::default());
+        let note = t.note.as_deref().unwrap();
+        assert!(
+            note.starts_with("its von Mises stress is not finite in "),
+            "{note}"
+        );
+        assert!(t.status().starts_with("not measured: its von Mises stress"));
+    }
+    assert!(
+        b.trials
+            .iter()
+            .filter(|t| t.framework == Framework::Implicit)
+            .all(|t| t.measured)
+    );
+    // Rows: implicit Euler first, with a measured best; VBD after it, without one.
+    assert_eq!(b.rows[0].framework, Framework::Implicit);
+    assert!(b.rows[0].best.as_ref().is_some_and(|t| t.measured));
+    assert_eq!(b.rows[1].framework, Framework::Vbd);
+    assert!(b.rows[1].best.is_none());
+    let md = b.to_markdown();
+    assert!(md.contains("| - | vbd | none measured within the budget (1 iterations: its von Mises stress is not finite"), "{md}");
+    assert!(
+        b.sentences[0].contains("implicit (velocity 1e-2 m/s) is the most accurate"),
+        "{}",
+        b.sentences[0]
+    );
+    let (dir, _) = write_and_read_back(&run, "unmeasured");
+    let csv = std::fs::read_to_string(dir.join("budget.csv")).unwrap();
+    let line = csv
+        .lines()
+        .find(|l| l.starts_with("neo-hookean,vbd,1 iterations,"))
+        .unwrap();
+    // Cost and iterations are known; the errors are empty cells.
+    assert!(line.contains(",true,false,"), "{line}");
+    assert!(
+        line.contains(",,,,,,,,,,,,,,,,\"not measured: its von Mises stress"),
+        "{line}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A reference that does not complete (case D at the smallest Young's modulus a scene
+/// allows: its Newton cannot solve the body's step) leaves nothing to measure against: the
+/// budget still finishes and writes, every row saying why, and no framework is run.
+#[test]
+fn a_reference_that_does_not_complete_is_reported_in_the_rows() {
+    let base = load_case_or_file("case-d", &["material.youngs_modulus=1e-290".to_owned()]).unwrap();
+    let spec = BudgetSpec {
+        duration: Some(0.1),
+        frameworks: vec![Framework::Explicit, Framework::Implicit],
+        ..BudgetSpec::default()
+    };
+    let run = budget(&base, &spec, |_| {}).unwrap();
+    let b = &run.budget;
+    assert!(b.trials.is_empty());
+    assert_eq!(b.rows.len(), 2);
+    for r in &b.rows {
+        let why = r.cannot_run.as_deref().unwrap();
+        assert!(
+            why.starts_with("no reference to measure against: the reference run (implicit Euler"),
+            "{why}"
+        );
+    }
+    assert!(
+        b.sentences[0].contains("no framework can run it: no reference"),
+        "{}",
+        b.sentences[0]
+    );
+    let (dir, written) = write_and_read_back(&run, "noref");
+    assert_eq!(written, ["budget.md", "budget.csv", "budget.json"]);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A framework or an energy listed twice would repeat its rows (both ranked first): refused,
+/// naming the list and the name.
+#[test]
+fn a_framework_or_energy_listed_twice_is_refused() {
+    let base = load_case_or_file("case-a", &[]).unwrap();
+    let spec = BudgetSpec {
+        frameworks: vec![Framework::Implicit, Framework::Implicit],
+        ..BudgetSpec::default()
+    };
+    let Err(e) = budget(&base, &spec, |_| panic!("nothing runs")) else {
+        panic!("accepted")
+    };
+    assert_eq!(e.to_string(), "--frameworks: implicit is listed twice");
+    let spec = BudgetSpec {
+        energies: vec![EnergyKind::Stvk, EnergyKind::Linear, EnergyKind::Stvk],
+        ..BudgetSpec::default()
+    };
+    let Err(e) = budget(&base, &spec, |_| panic!("nothing runs")) else {
+        panic!("accepted")
+    };
+    assert_eq!(e.to_string(), "--energies: stvk is listed twice");
+}
+
+/// The time bound before anything runs: the estimate from the step counts alone (no clock),
+/// so the refusal is the same on every machine. Case A's co-rotational energy over 0.5 s (45
+/// frames, a reference of 4500 steps on 160 triangles, 19 ladders) is estimated at about
+/// 0.6 s, more than 0.001 minutes; a run of hours (`--haptics` over 100 s: 100000 frames) is refused at the
+/// default ten minutes. Nothing runs (the progress is never told anything).
+#[test]
+fn the_time_bound_refuses_before_anything_runs() {
+    let base = load_case_or_file("case-a", &[]).unwrap();
+    let spec = BudgetSpec {
+        duration: Some(0.5),
+        energies: vec![EnergyKind::Corotational],
+        max_minutes: 0.001,
+        ..BudgetSpec::default()
+    };
+    let Err(e) = budget(&base, &spec, |w| panic!("{w} ran")) else {
+        panic!("accepted")
+    };
+    let e = e.to_string();
+    assert!(
+        e.starts_with("--max-minutes 0.001: the budget would take about 0.0")
+            && e.contains(" minutes (0.")
+            && e.contains(
+                "estimated before running, from the step counts: 1 energy x (a reference of \
+                 4500 steps on 160 triangles + up to 19 ladders of settings over 45 frames)"
+            )
+            && e.contains("shorten --duration, choose fewer --frameworks or --energies, or raise --max-minutes"),
+        "{e}"
+    );
+    let spec = BudgetSpec {
+        duration: Some(100.0),
+        ..BudgetSpec::haptics()
+    };
+    assert_eq!(spec.max_minutes, fem_cases::budget::DEFAULT_MAX_MINUTES);
+    let Err(e) = budget(&base, &spec, |w| panic!("{w} ran")) else {
+        panic!("accepted")
+    };
+    assert!(
+        e.to_string()
+            .starts_with("--max-minutes 10: the budget would take about "),
+        "{e}"
+    );
+}
+
 /// The path of the first difference between two JSON values (`None`: equal).
 fn first_difference(a: &serde_json::Value, b: &serde_json::Value, path: String) -> Option<String> {
     use serde_json::Value;

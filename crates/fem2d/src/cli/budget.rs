@@ -53,6 +53,12 @@ pub struct BudgetArgs {
     /// without); its own error is estimated against half as many.
     #[arg(long = "reference-steps")]
     pub reference_steps: Option<u64>,
+    /// The longest the comparison may take, in minutes of wall time (default 10:
+    /// `fem2d budget case-a` takes about 1.5 minutes on a busy 2-core VM, `case-d` under one).
+    /// Estimated from the step counts before anything runs, then from what was measured;
+    /// past it the budget stops with an error saying which flag to change.
+    #[arg(long = "max-minutes")]
+    pub max_minutes: Option<f64>,
     /// Write budget.md, budget.csv, budget.json and the charts here.
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
@@ -87,6 +93,9 @@ pub fn run(args: &BudgetArgs) -> Result<(), String> {
     if let Some(x) = args.criterion {
         spec.criterion = x;
     }
+    if let Some(x) = args.max_minutes {
+        spec.max_minutes = x;
+    }
     if !args.energies.is_empty() {
         spec.energies = args
             .energies
@@ -96,6 +105,7 @@ pub fn run(args: &BudgetArgs) -> Result<(), String> {
                     .map_err(|err| format!("--energies: {err}"))
             })
             .collect::<Result<_, _>>()?;
+        twice("--energies", &args.energies)?;
     }
     if !args.frameworks.is_empty() {
         spec.frameworks = args
@@ -103,6 +113,7 @@ pub fn run(args: &BudgetArgs) -> Result<(), String> {
             .iter()
             .map(|f| Framework::parse(f).map_err(|err| format!("--frameworks: {err}")))
             .collect::<Result<_, _>>()?;
+        twice("--frameworks", &args.frameworks)?;
     }
     let base = load_case_or_file(&args.scene.scene, &args.scene.set).map_err(|e| e.to_string())?;
     // Take the output directory first, so a second writer fails before the runs.
@@ -119,6 +130,20 @@ pub fn run(args: &BudgetArgs) -> Result<(), String> {
             .map_err(|e| e.to_string())?;
         out.commit().map_err(|e| e.to_string())?;
         println!("wrote {} in {}", written.join(", "), target.display());
+    }
+    Ok(())
+}
+
+/// A name listed twice in a comma-separated flag is an error naming the flag as written
+/// (`--frameworks implicit,implicit: implicit is listed twice`): the rows would repeat.
+fn twice(flag: &str, names: &[String]) -> Result<(), String> {
+    for (k, name) in names.iter().enumerate() {
+        if names[..k].contains(name) {
+            return Err(format!(
+                "{flag} {}: {name} is listed twice",
+                names.join(",")
+            ));
+        }
     }
     Ok(())
 }

@@ -556,6 +556,223 @@ fn budget_rejects_bad_settings_in_one_line() {
     );
 }
 
+/// Every numeric flag of `fem2d budget`, given NaN, infinity, 0, a negative, a subnormal and
+/// 1e308, fails in one line naming the flag and the value as the user wrote them (`--fps
+/// 1e-320: ...`, not the `solver.dt = inf` its frame step would give), before anything runs;
+/// the integer flag is the parser's (exit 2), the others exit 1. `--max-minutes 1e308` is a
+/// limit no estimate reaches, so it is not an error.
+#[test]
+fn budget_numeric_flags_name_themselves_for_every_bad_number() {
+    let values = [
+        ("nan", "NaN"),
+        ("inf", "inf"),
+        ("0", "0"),
+        ("-1", "-1"),
+        ("1e-320", "1e-320"),
+        ("1e308", "1e308"),
+    ];
+    for flag in [
+        "--fps",
+        "--budget-ms",
+        "--duration",
+        "--settle",
+        "--criterion",
+        "--max-minutes",
+        "--reference-steps",
+    ] {
+        for (value, shown) in values {
+            if flag == "--max-minutes" && value == "1e308" {
+                continue;
+            }
+            let out = fem2d(&["budget", "case-a", flag, value]);
+            let e = one_line_error(&out);
+            if flag == "--reference-steps" && value != "0" {
+                assert_eq!(out.status.code(), Some(2), "{flag} {value}: {e}");
+                assert!(e.contains(&format!("'{value}' for '{flag}")), "{e}");
+                continue;
+            }
+            assert_eq!(out.status.code(), Some(1), "{flag} {value}: {e}");
+            assert!(
+                e.starts_with(&format!("error: {flag} {shown}: ")),
+                "{flag} {value}: {e}"
+            );
+        }
+    }
+    let e = one_line_error(&fem2d(&["budget", "case-a", "--fps", "1e-320"]));
+    assert!(
+        e.contains("--fps 1e-320: its frame, 1/fps = inf s, is not a finite number of seconds"),
+        "{e}"
+    );
+}
+
+/// A duration shorter than one frame is refused, not stretched to a frame (at 0.001 frames
+/// per second the scene's 2 s would have simulated 1000 s): the message names the flag the
+/// user set and both values.
+#[test]
+fn budget_refuses_a_duration_shorter_than_one_frame() {
+    let e = one_line_error(&fem2d(&["budget", "case-a", "--fps", "0.001"]));
+    assert!(
+        e.contains(
+            "--fps 0.001: one frame (1000 s) is longer than the scene's duration (solver.steps x solver.dt = 2 s)"
+        ),
+        "{e}"
+    );
+    let e = one_line_error(&fem2d(&["budget", "case-a", "--duration", "0.005"]));
+    assert!(
+        e.contains("--duration 0.005: shorter than one frame at --fps 90 (0.011111111111111112 s)"),
+        "{e}"
+    );
+    let e = one_line_error(&fem2d(&[
+        "budget",
+        "case-a",
+        "--fps",
+        "60",
+        "--duration",
+        "1e-3",
+    ]));
+    assert!(
+        e.contains("--duration 0.001: shorter than one frame at --fps 60"),
+        "{e}"
+    );
+}
+
+/// A framework or an energy listed twice would give two rows both ranked first: refused,
+/// naming the flag as written and the repeated name.
+#[test]
+fn budget_refuses_a_name_listed_twice() {
+    let e = one_line_error(&fem2d(&[
+        "budget",
+        "case-a",
+        "--frameworks",
+        "implicit,implicit",
+    ]));
+    assert!(
+        e.contains("--frameworks implicit,implicit: implicit is listed twice"),
+        "{e}"
+    );
+    let e = one_line_error(&fem2d(&[
+        "budget",
+        "case-a",
+        "--energies",
+        "stvk,linear,stvk",
+    ]));
+    assert!(
+        e.contains("--energies stvk,linear,stvk: stvk is listed twice"),
+        "{e}"
+    );
+}
+
+/// The time bound (`--max-minutes`, default 10): a run of hours is refused before anything
+/// runs, from the step counts alone, so the refusal does not depend on this machine's
+/// speed: `--haptics --duration 100` (100000 frames) at the default, and a short run under a
+/// tiny limit. Nothing runs: no progress line precedes the error, and `--out` is not
+/// written.
+#[test]
+fn budget_time_bound_refuses_before_anything_runs() {
+    let e = one_line_error(&fem2d(&[
+        "budget",
+        "case-a",
+        "--haptics",
+        "--duration",
+        "100",
+    ]));
+    assert!(
+        e.starts_with("error: --max-minutes 10: the budget would take about ")
+            && e.contains("estimated before running, from the step counts: 5 energies x (a reference of 10000000 steps")
+            && e.contains("shorten --duration, choose fewer --frameworks or --energies, or raise --max-minutes"),
+        "{e}"
+    );
+    let dir = scratch("budget-bound");
+    let out = dir.join("b");
+    let e = one_line_error(&fem2d(&[
+        "budget",
+        "case-a",
+        "--energies",
+        "corotational",
+        "--duration",
+        "0.5",
+        "--max-minutes",
+        "0.001",
+        "--out",
+        arg(&out),
+    ]));
+    assert!(e.starts_with("error: --max-minutes 0.001: "), "{e}");
+    assert!(!out.join("budget.md").exists());
+}
+
+/// The budget finishes and writes on a body at rest (every error exactly 0: the table says
+/// 0, the Pareto chart draws it at a floor its legend names), at the smallest Young's modulus
+/// a scene allows, and with every rung stopped over the cost cap: no table carries a NaN or
+/// an infinity.
+#[test]
+fn budget_writes_finite_tables_at_rest_at_the_smallest_modulus_and_over_the_cap() {
+    let dir = scratch("budget-finite");
+    let cases: [(&str, &[&str]); 3] = [
+        (
+            "rest",
+            &[
+                "--set",
+                "gravity=[0,0]",
+                "--energies",
+                "neo-hookean",
+                "--frameworks",
+                "explicit,implicit",
+            ],
+        ),
+        (
+            "soft",
+            &[
+                "--set",
+                "material.youngs_modulus=1e-290",
+                "--energies",
+                "neo-hookean",
+                "--frameworks",
+                "explicit,implicit",
+            ],
+        ),
+        (
+            "cap",
+            &[
+                "--energies",
+                "corotational",
+                "--frameworks",
+                "pbd,pd",
+                "--budget-ms",
+                "1e-4",
+            ],
+        ),
+    ];
+    for (name, extra) in cases {
+        let out = dir.join(name);
+        let mut args = vec!["budget", "case-a", "--duration", "0.2", "--out", arg(&out)];
+        args.extend_from_slice(extra);
+        ok(&fem2d(&args));
+        for file in ["budget.csv", "budget.md", "budget.json"] {
+            let text = std::fs::read_to_string(out.join(file)).unwrap();
+            for bad in ["NaN", "nan,", ",inf", "| inf"] {
+                assert!(!text.contains(bad), "{name} {file} holds {bad}:\n{text}");
+            }
+        }
+        let csv = std::fs::read_to_string(out.join("budget.csv")).unwrap();
+        assert!(csv.lines().next().unwrap().ends_with(",status"), "{csv}");
+        if name == "rest" {
+            assert!(out.join("pareto-neo-hookean.png").is_file(), "{name}");
+            let svg = std::fs::read_to_string(out.join("pareto-neo-hookean.svg")).unwrap();
+            assert!(svg.contains("error 0, drawn at 1e-12"), "{svg}");
+            let md = std::fs::read_to_string(out.join("budget.md")).unwrap();
+            assert!(md.contains("is the most accurate, 0 m,"), "{md}");
+        }
+        if name == "cap" {
+            assert!(
+                csv.lines()
+                    .skip(1)
+                    .all(|l| l.contains(",true,,,") && l.ends_with("times the budget over the run")),
+                "{csv}"
+            );
+        }
+    }
+}
+
 /// A reader that goes away before the output is printed (`fem2d budget ... | true`): no panic
 /// message, exit status 141 (as if killed by SIGPIPE), and nothing else on stderr but the
 /// progress lines.
