@@ -132,8 +132,9 @@ pub const MAX_JOBS: usize = 1_000_000;
 /// Longest simulated `duration` of a sweep job, s.
 pub const MAX_DURATION: f64 = 1e6;
 
-/// Parse a spec's text.
+/// Parse a spec's text (a leading UTF-8 byte-order mark is skipped).
 pub fn parse_sweep(text: &str, origin: &str, base_dir: &Path) -> Result<Sweep, SceneError> {
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
     let spec: SweepSpec = toml::from_str(text).map_err(|e: toml::de::Error| {
         SceneError::Scene(format!(
             "{origin}: {}",
@@ -568,9 +569,10 @@ pub fn merge(paths: &[PathBuf]) -> Result<Merged, SceneError> {
                 path.display()
             ))
         })?;
-        let shard: ShardFile = serde_json::from_slice(&bytes).map_err(|e| {
-            SceneError::Scene(format!("{}: not a sweep shard file: {e}", path.display()))
-        })?;
+        let shard: ShardFile =
+            serde_json::from_slice(fem_mesh::io::strip_bom(&bytes)).map_err(|e| {
+                SceneError::Scene(format!("{}: not a sweep shard file: {e}", path.display()))
+            })?;
         // The digest is recomputed, not trusted: a spec edited in the file changes it.
         let recomputed = digest_of(&shard.spec);
         if recomputed != shard.digest {

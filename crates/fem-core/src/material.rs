@@ -135,6 +135,11 @@ pub struct Material {
 /// subnormal numbers or zero.
 pub const MIN_YOUNGS_MODULUS: Real = 1e-290;
 
+/// The largest Young's modulus accepted, Pa: up to it the Lamé parameters stay finite at every
+/// Poisson ratio in (-1, 0.5) (the nearest to either end, `1 - 2 nu` or `1 + nu` = 1.1e-16,
+/// multiplies `E` by about 3e15), under either plane model. Steel is 2e11 Pa.
+pub const MAX_YOUNGS_MODULUS: Real = 1e290;
+
 impl Material {
     /// Validate and build. `youngs_modulus` in Pa (finite, > 0), `poisson_ratio` in (-1, 0.5),
     /// `density` in kg/m^3 (finite, > 0; with unit thickness, the mass per unit area).
@@ -156,6 +161,13 @@ impl Material {
                 "youngs_modulus",
                 youngs_modulus,
                 "must be at least 1e-290 Pa (smaller values underflow the Lame parameters)",
+            );
+        }
+        if youngs_modulus > MAX_YOUNGS_MODULUS {
+            return err(
+                "youngs_modulus",
+                youngs_modulus,
+                "must be at most 1e290 Pa (larger values overflow the Lame parameters)",
             );
         }
         if !poisson_ratio.is_finite() || poisson_ratio <= -1.0 || poisson_ratio >= 0.5 {
@@ -273,6 +285,30 @@ mod tests {
         assert_eq!(
             Material::new(1.0, 0.2, -3.0).unwrap_err().to_string(),
             "material.density = -3: must be a finite number > 0 (kg/m^3)"
+        );
+    }
+
+    #[test]
+    fn youngs_modulus_bounds_keep_the_lame_parameters_finite() {
+        // At both bounds, with the Poisson ratios nearest to either end of (-1, 0.5), both
+        // plane models give finite, valid Lamé parameters and P-wave moduli.
+        let ends = [-1.0 + Real::EPSILON, 0.0, 0.3, 0.5 - Real::EPSILON / 2.0];
+        for e in [MIN_YOUNGS_MODULUS, MAX_YOUNGS_MODULUS] {
+            for nu in ends {
+                let m = Material::new(e, nu, 1.0).unwrap();
+                for plane in [PlaneModel::PlaneStrain, PlaneModel::PlaneStress] {
+                    let l = m.lame(plane);
+                    assert_eq!(Lame::new(l.mu(), l.lambda()), Ok(l), "E = {e}, nu = {nu}");
+                    assert!(
+                        (l.lambda() + 2.0 * l.mu()).is_finite(),
+                        "E = {e}, nu = {nu}"
+                    );
+                }
+            }
+        }
+        assert_eq!(
+            Material::new(1e300, 0.3, 1.0).unwrap_err().to_string(),
+            "material.youngs_modulus = 1e300: must be at most 1e290 Pa (larger values overflow the Lame parameters)"
         );
     }
 }

@@ -10,7 +10,9 @@
 //! Two optional keys carry material regions: `"regions": [t0, t1, ...]`, one non-negative
 //! integer tag per triangle, and `"region_names": ["soft-tissue", "femur", ...]`, the name of
 //! each tag. Absent, the mesh is one region (tag 0). When present, `regions` has one entry per
-//! triangle and every tag is below the number of names (when names are given). The Gmsh export
+//! triangle and every tag is below the number of names (when names are given; without names,
+//! below [`MAX_UNNAMED_REGIONS`]); each name passes [`check_region_name`] and is given once. A
+//! UTF-8 byte-order mark before the JSON is skipped. The Gmsh export
 //! writes tag `k` as physical tag `k + 1` with a `$PhysicalNames` section; the VTK export writes
 //! an integer `region` cell scalar.
 
@@ -173,10 +175,16 @@ pub fn write_mesh_json(path: &Path, mesh: &Mesh2) -> Result<()> {
     write_atomic(path, mesh_to_json(mesh).as_bytes())
 }
 
+/// `bytes` without a leading UTF-8 byte-order mark (which some editors write at the start of a
+/// text file).
+pub fn strip_bom(bytes: &[u8]) -> &[u8] {
+    bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes)
+}
+
 /// Parses and validates mesh JSON `bytes` (`path` is only used in error messages).
 pub fn parse_mesh_json(bytes: &[u8], path: &Path) -> Result<Mesh2> {
     // serde ignores unknown keys, as the contract requires.
-    let mesh: Mesh2 = serde_json::from_slice(bytes).map_err(|e| {
+    let mesh: Mesh2 = serde_json::from_slice(strip_bom(bytes)).map_err(|e| {
         MeshError::parse(
             path,
             format!("line {} column {}", e.line(), e.column()),
@@ -232,9 +240,42 @@ pub fn validate_mesh(mesh: &Mesh2) -> std::result::Result<(), (String, String)> 
     validate_regions(mesh)
 }
 
+/// Most regions a mesh without `region_names` may tag: its tags must be below this. A program
+/// that reads the mesh names each unnamed tag (`region-7`), so one tag of four billion would
+/// make it name four billion regions; a named mesh's tags are bounded by its names.
+pub const MAX_UNNAMED_REGIONS: u32 = 65_536;
+
+/// The rule every region name follows (a mesh's `region_names`, and in scenes `material.name`
+/// and each `[[regions]]` entry's `name`): not empty (nor only spaces), and without control
+/// characters (line breaks, tabs), commas or double quotes, so that a name is one field of a
+/// CSV header (`regions.csv`) and of a one-line message as it is. The error is the rule.
+pub fn check_region_name(name: &str) -> std::result::Result<(), &'static str> {
+    if name.trim().is_empty() || name.chars().any(|c| c.is_control() || c == ',' || c == '"') {
+        Err(
+            "must be non-empty, without commas, double quotes or control characters (line breaks, tabs)",
+        )
+    } else {
+        Ok(())
+    }
+}
+
 /// Checks the optional region keys: one tag per triangle, every tag below the number of names
-/// (when names are given); on failure returns `(location, message)`.
+/// (when names are given, else below [`MAX_UNNAMED_REGIONS`]), every name valid
+/// ([`check_region_name`]) and given once; on failure returns `(location, message)`.
 pub fn validate_regions(mesh: &Mesh2) -> std::result::Result<(), (String, String)> {
+    for (k, name) in mesh.region_names.iter().enumerate() {
+        if let Err(rule) = check_region_name(name) {
+            return Err((format!("region_names[{k}]"), format!("{name:?} {rule}")));
+        }
+        if let Some(first) = mesh.region_names[..k].iter().position(|n| n == name) {
+            return Err((
+                format!("region_names[{k}]"),
+                format!(
+                    "{name:?} is given twice (also region_names[{first}]); each region needs its own name"
+                ),
+            ));
+        }
+    }
     let (m, tags, names) = (
         mesh.triangles.len(),
         mesh.regions.len(),
@@ -256,6 +297,20 @@ pub fn validate_regions(mesh: &Mesh2) -> std::result::Result<(), (String, String
         return Err((
             format!("regions[{t}]"),
             format!("tag {k} has no name ({names} region_names)"),
+        ));
+    }
+    if names == 0
+        && let Some((t, k)) = mesh
+            .regions
+            .iter()
+            .enumerate()
+            .find(|&(_, &k)| k >= MAX_UNNAMED_REGIONS)
+    {
+        return Err((
+            format!("regions[{t}]"),
+            format!(
+                "tag {k}: without region_names tags must be below {MAX_UNNAMED_REGIONS} (fem_mesh::io::MAX_UNNAMED_REGIONS)"
+            ),
         ));
     }
     Ok(())

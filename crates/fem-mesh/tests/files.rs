@@ -240,3 +240,84 @@ fn bad_region_tags_are_one_line_errors_naming_the_key_and_value() {
     let mesh = parse_mesh_json(text.as_bytes(), Path::new("m.json")).unwrap();
     assert_eq!(mesh.region_count(), 5);
 }
+
+/// `region_names` `["b", "b"]` was accepted, and a scene's `mesh_regions = ["b"]` then took
+/// both tags; an empty name or one with a line break (which would split a one-line message or
+/// a Gmsh name) was accepted too. Each is an error naming the file, the key and the name.
+#[test]
+fn repeated_empty_or_unprintable_region_names_are_errors_naming_the_file_and_the_name() {
+    let base = mesh_to_json(&two_cells());
+    let with = |names: &str| {
+        base.replacen(
+            "\n  ]\n}",
+            &format!("\n  ],\n  \"regions\": [0, 0, 1, 1], \"region_names\": {names}\n}}"),
+            1,
+        )
+    };
+    let cases = [
+        (
+            r#"["b", "b"]"#,
+            r#"m.json: region_names[1]: "b" is given twice (also region_names[0]); each region needs its own name"#,
+        ),
+        (
+            r#"["", "b"]"#,
+            r#"m.json: region_names[0]: "" must be non-empty, without commas, double quotes or control characters (line breaks, tabs)"#,
+        ),
+        (
+            r#"["a", "x\ny"]"#,
+            r#"m.json: region_names[1]: "x\ny" must be non-empty, without commas"#,
+        ),
+        (
+            r#"["a,b", "c"]"#,
+            r#"m.json: region_names[0]: "a,b" must be"#,
+        ),
+        (
+            r#"["a", "q\"q"]"#,
+            r#"m.json: region_names[1]: "q\"q" must be"#,
+        ),
+    ];
+    for (names, expected) in cases {
+        let err = parse_mesh_json(with(names).as_bytes(), Path::new("m.json"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.starts_with(expected),
+            "{err} should start with {expected}"
+        );
+        assert_eq!(err.lines().count(), 1, "{err}");
+    }
+    parse_mesh_json(
+        with(r#"["soft tissue", "bone (tibia)"]"#).as_bytes(),
+        Path::new("m.json"),
+    )
+    .unwrap();
+    // Unnamed tags are bounded: a tag of four billion would make a reader name four billion
+    // regions.
+    let huge = base.replacen(
+        "\n  ]\n}",
+        "\n  ],\n  \"regions\": [0, 0, 0, 4000000000]\n}",
+        1,
+    );
+    let err = parse_mesh_json(huge.as_bytes(), Path::new("m.json"))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.starts_with(
+            "m.json: regions[3]: tag 4000000000: without region_names tags must be below 65536"
+        ),
+        "{err}"
+    );
+}
+
+/// A UTF-8 byte-order mark, which some editors write first, is skipped (before: "invalid
+/// JSON" at line 1 column 1).
+#[test]
+fn a_byte_order_mark_before_mesh_json_is_skipped() {
+    let text = mesh_to_json(&two_regions());
+    let mut bytes = b"\xEF\xBB\xBF".to_vec();
+    bytes.extend_from_slice(text.as_bytes());
+    assert_eq!(
+        parse_mesh_json(&bytes, Path::new("bom.json")).unwrap(),
+        two_regions()
+    );
+}

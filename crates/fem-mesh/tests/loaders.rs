@@ -170,6 +170,24 @@ fn ply_ascii_and_binary_load() {
     }
 }
 
+/// A UTF-8 byte-order mark before a text model (OBJ, ASCII STL, a PLY header) is skipped
+/// (before: the OBJ's first vertex was silently dropped, the STL and PLY refused).
+#[test]
+fn a_byte_order_mark_before_a_text_model_is_skipped() {
+    use fem_mesh::load::parse_model;
+    let bom = |text: &str| [b"\xEF\xBB\xBF".as_slice(), text.as_bytes()].concat();
+    let options = LoadOptions::default();
+    for (name, text) in [
+        ("a.obj", OBJ),
+        ("a.stl", &stl_ascii()),
+        ("a.ply", PLY_ASCII),
+    ] {
+        let plain = parse_model(text.as_bytes(), p(name), &options).unwrap();
+        let marked = parse_model(&bom(text), p(name), &options).unwrap();
+        assert_eq!(marked, plain, "{name}");
+    }
+}
+
 #[test]
 fn ply_errors() {
     let cases: Vec<(Vec<u8>, &str)> = vec![

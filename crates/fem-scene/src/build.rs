@@ -8,7 +8,7 @@
 use std::path::Path;
 
 use fem_core::energy::{AnyEnergy, ElementEnergies, Energy};
-use fem_core::math::{Real, Vec2};
+use fem_core::math::{Real, Vec2, readable};
 use fem_core::mesh::Mesh;
 use fem_core::stress::VonMisesFormula;
 use fem_core::structured::{NodeOrder, RectangleParams, rectangle};
@@ -119,7 +119,7 @@ fn build_mesh_uncached(scene: &LoadedScene, source: &dyn MeshSource) -> Result<M
     let mut from = String::from("mesh");
     let mut mesh2: Mesh2 = match spec.kind.unwrap_or(MeshKind::Rectangle) {
         MeshKind::Rectangle => {
-            let mesh = rectangle(&RectangleParams {
+            let params = RectangleParams {
                 origin: spec.origin.unwrap_or([0.0, 0.0]),
                 width: spec.width.unwrap_or(1.0),
                 height: spec.height.unwrap_or(1.0),
@@ -127,8 +127,8 @@ fn build_mesh_uncached(scene: &LoadedScene, source: &dyn MeshSource) -> Result<M
                 ny: spec.ny.unwrap_or(1),
                 diagonal: spec.diagonal.unwrap_or_default(),
                 order: NodeOrder::XFastest,
-            })
-            .map_err(|e| SceneError::Mesh(format!("{}: mesh: {e}", scene.origin)))?;
+            };
+            let mesh = rectangle(&params).map_err(|e| rectangle_error(scene, &params, &e))?;
             Mesh2 {
                 vertices: mesh.vertices().iter().map(|p| [p.x, p.y]).collect(),
                 triangles: mesh
@@ -145,7 +145,15 @@ fn build_mesh_uncached(scene: &LoadedScene, source: &dyn MeshSource) -> Result<M
             fem_mesh::io::parse_mesh_json(&bytes, Path::new(&name)).map_err(mesh_err)?
         }
         MeshKind::Model | MeshKind::Body => match mesh_pipeline(scene, source)? {
-            Some(out) => out.mesh,
+            Some(out) => {
+                check_refined(
+                    scene,
+                    &out.mesh,
+                    &out.triangulate_report,
+                    TriangulateParams::default().max_steiner_points,
+                )?;
+                out.mesh
+            }
             None => unreachable!("a model or body mesh goes through the pipeline"),
         },
         MeshKind::Shank => {
@@ -156,24 +164,23 @@ fn build_mesh_uncached(scene: &LoadedScene, source: &dyn MeshSource) -> Result<M
                 min_angle_deg: spec.min_angle.unwrap_or(defaults.min_angle_deg),
                 ..defaults
             };
-            fem_mesh::triangulate::triangulate_regions(&[outline], &bones, &params)
-                .map_err(mesh_err)?
-                .0
+            let (mesh, report) =
+                fem_mesh::triangulate::triangulate_regions(&[outline], &bones, &params)
+                    .map_err(mesh_err)?;
+            check_refined(scene, &mesh, &report, params.max_steiner_points)?;
+            mesh
         }
     };
+    let unplaced =
+        (spec.rotate_deg.is_some() || spec.align_min.is_some()).then(|| mesh2.vertices.clone());
     place(&mut mesh2, spec.rotate_deg.unwrap_or(0.0), spec.align_min);
-    let vertices = mesh2
-        .vertices
-        .iter()
-        .map(|p| Vec2::new(p[0], p[1]))
-        .collect();
-    let triangles = mesh2
-        .triangles
-        .iter()
-        .map(|t| t.map(|i| i as u32))
-        .collect();
-    let mut mesh = Mesh::new(vertices, triangles)
-        .map_err(|e| SceneError::Mesh(format!("{}: {from}: {e}", scene.origin)))?;
+    let mut mesh = match core_mesh(&mesh2.vertices, &mesh2.triangles) {
+        Ok(mesh) => mesh,
+        Err(e) => {
+            return Err(placement_error(scene, &mesh2, unplaced)
+                .unwrap_or_else(|| SceneError::Mesh(format!("{}: {from}: {e}", scene.origin))));
+        }
+    };
     if !mesh2.regions.is_empty() {
         let names = if mesh2.region_names.is_empty() {
             let n = mesh2.regions.iter().max().map_or(0, |m| *m + 1);
@@ -185,6 +192,114 @@ fn build_mesh_uncached(scene: &LoadedScene, source: &dyn MeshSource) -> Result<M
             .map_err(|e| SceneError::Mesh(format!("{}: {from}: {e}", scene.origin)))?;
     }
     Ok(mesh)
+}
+
+/// The error of a rectangle whose triangles fail the mesh checks, naming the fields that made
+/// them: `mesh.origin` when the same rectangle at the origin is valid (round-off far from it
+/// collapsed the triangles), else `mesh.width` and `mesh.height` with the cell size.
+fn rectangle_error(
+    scene: &LoadedScene,
+    params: &RectangleParams,
+    e: &fem_core::mesh::MeshError,
+) -> SceneError {
+    let at_zero = RectangleParams {
+        origin: [0.0, 0.0],
+        ..*params
+    };
+    if params.origin != [0.0, 0.0] && rectangle(&at_zero).is_ok() {
+        return scene.error(
+            "mesh.origin",
+            crate::scene::fmt_point(params.origin),
+            &format!(
+                "moves the rectangle where floating-point round-off breaks it ({e}); choose an origin nearer 0"
+            ),
+        );
+    }
+    scene.error(
+        "mesh.width",
+        readable(params.width),
+        &format!(
+            "with mesh.height = {}, nx = {} and ny = {} the cells are {:e} x {:e} m, too unequal, too small or too large for their triangles to pass the mesh checks ({e})",
+            readable(params.height),
+            params.nx,
+            params.ny,
+            params.width / params.nx as f64,
+            params.height / params.ny as f64
+        ),
+    )
+}
+
+/// A fem-core mesh (validated) of the vertices and triangles.
+fn core_mesh(
+    vertices: &[[f64; 2]],
+    triangles: &[[usize; 3]],
+) -> Result<Mesh, fem_core::mesh::MeshError> {
+    Mesh::new(
+        vertices.iter().map(|p| Vec2::new(p[0], p[1])).collect(),
+        triangles.iter().map(|t| t.map(|i| i as u32)).collect(),
+    )
+}
+
+/// When the mesh was valid before `mesh.rotate_deg` and `mesh.align_min` moved it and is not
+/// after (a shift to 1e300 m leaves too few significant digits to tell a triangle's corners
+/// apart), the error names the field that moved it, with its value.
+fn placement_error(
+    scene: &LoadedScene,
+    placed: &Mesh2,
+    unplaced: Option<Vec<[f64; 2]>>,
+) -> Option<SceneError> {
+    let spec = &scene.scene.mesh;
+    let mut original = Mesh2 {
+        vertices: unplaced?,
+        triangles: placed.triangles.clone(),
+        ..Default::default()
+    };
+    core_mesh(&original.vertices, &original.triangles).ok()?;
+    let broken = core_mesh(&placed.vertices, &placed.triangles).err()?;
+    // Rotated only: if that mesh is valid, the shift broke it.
+    place(&mut original, spec.rotate_deg.unwrap_or(0.0), None);
+    let (field, value) = match spec.align_min {
+        Some(p) if core_mesh(&original.vertices, &original.triangles).is_ok() => {
+            ("mesh.align_min", crate::scene::fmt_point(p))
+        }
+        _ => ("mesh.rotate_deg", readable(spec.rotate_deg.unwrap_or(0.0))),
+    };
+    Some(scene.error(
+        field,
+        value,
+        &format!(
+            "moves the mesh where floating-point round-off breaks it ({broken}); the mesh is valid where it was made, so choose a placement nearer the origin"
+        ),
+    ))
+}
+
+/// A refinement that stopped at its Steiner point cap before every triangle met
+/// `mesh.max_area` leaves a partly refined mesh (tiny triangles beside large ones, on which
+/// the solvers struggle): an error naming `mesh.max_area`, with the triangles it would need.
+fn check_refined(
+    scene: &LoadedScene,
+    mesh: &Mesh2,
+    report: &fem_mesh::triangulate::TriangulateReport,
+    cap: usize,
+) -> Result<(), SceneError> {
+    let Some(max_area) = scene.scene.mesh.max_area else {
+        return Ok(());
+    };
+    if report.refinement_complete || report.max_area_met {
+        return Ok(());
+    }
+    let needed = mesh.area() / max_area;
+    Err(scene.error(
+        "mesh.max_area",
+        readable(max_area),
+        &format!(
+            "the mesher stopped at its {cap} Steiner points ({} triangles, the largest {:.3e} m^2) before every triangle was this small; a body of {:.4} m^2 needs about {} triangles at this area; raise mesh.max_area (or lower mesh.min_angle if that is not the cause)",
+            mesh.triangles.len(),
+            report.max_area,
+            mesh.area(),
+            readable(needed.ceil())
+        ),
+    ))
 }
 
 /// The mesh pipeline's output (every stage, for Figure 1) for a scene whose mesh comes from a
@@ -319,40 +434,37 @@ pub fn material_regions(scene: &LoadedScene, mesh: &Mesh) -> Result<MaterialRegi
     let centroids: Vec<Vec2> = (0..n)
         .map(|t| mesh.gather(t, mesh.vertices()).iter().sum::<Vec2>() / 3.0)
         .collect();
+    let names = mesh.region_names();
+    let mesh_tags = mesh.region_tags();
+    // Whether entry `r` claims triangle `t`.
+    let claims = |r: &crate::scene::MaterialRegionSpec, t: usize| match &r.polygon {
+        Some(poly) => fem_mesh::types::point_in_ring([centroids[t].x, centroids[t].y], poly),
+        None => mesh_tags
+            .get(t)
+            .is_some_and(|&tag| r.mesh_regions.contains(&names[tag as usize])),
+    };
     for (i, r) in s.regions.iter().enumerate() {
         let field = format!("regions.{i}");
         let k = i as u32 + 1;
+        if let Some(want) = r.mesh_regions.iter().find(|w| !names.contains(w)) {
+            return Err(scene.error(
+                &format!("{field}.mesh_regions"),
+                format!("{want:?}"),
+                &format!(
+                    "is not a region of the mesh (it has: {})",
+                    if names.is_empty() {
+                        "none".to_string()
+                    } else {
+                        names.join(", ")
+                    }
+                ),
+            ));
+        }
         let mut claimed = 0usize;
-        if let Some(poly) = &r.polygon {
-            for (t, c) in centroids.iter().enumerate() {
-                if fem_mesh::types::point_in_ring([c.x, c.y], poly) {
-                    tags[t] = k;
-                    claimed += 1;
-                }
-            }
-        } else {
-            let names = mesh.region_names();
-            for want in &r.mesh_regions {
-                if !names.iter().any(|n| n == want) {
-                    return Err(scene.error(
-                        &format!("{field}.mesh_regions"),
-                        format!("{want:?}"),
-                        &format!(
-                            "is not a region of the mesh (it has: {})",
-                            if names.is_empty() {
-                                "none".to_string()
-                            } else {
-                                names.join(", ")
-                            }
-                        ),
-                    ));
-                }
-            }
-            for (t, &tag) in mesh.region_tags().iter().enumerate() {
-                if r.mesh_regions.contains(&names[tag as usize]) {
-                    tags[t] = k;
-                    claimed += 1;
-                }
+        for (t, tag) in tags.iter_mut().enumerate() {
+            if claims(r, t) {
+                *tag = k;
+                claimed += 1;
             }
         }
         if claimed == 0 {
@@ -360,8 +472,31 @@ pub fn material_regions(scene: &LoadedScene, mesh: &Mesh) -> Result<MaterialRegi
         }
     }
     let mut area = vec![0.0; s.regions.len() + 1];
+    let mut owned = vec![0usize; s.regions.len() + 1];
     for (t, el) in mesh.elements().iter().enumerate() {
         area[tags[t] as usize] += el.area;
+        owned[tags[t] as usize] += 1;
+    }
+    // An entry whose every element a later entry claims again owns nothing: its material
+    // would apply nowhere, as if it claimed no element.
+    if let Some(i) = (0..s.regions.len()).find(|&i| owned[i + 1] == 0) {
+        let r = &s.regions[i];
+        let mut by: Vec<u32> = (0..n).filter(|&t| claims(r, t)).map(|t| tags[t]).collect();
+        by.sort_unstable();
+        by.dedup();
+        let by: Vec<String> = by.iter().map(|k| format!("regions.{}", k - 1)).collect();
+        let list = match by.split_last() {
+            Some((last, [])) => last.clone(),
+            Some((last, rest)) => format!("{} and {last}", rest.join(", ")),
+            None => String::new(),
+        };
+        return Err(scene.error(
+            &format!("regions.{i}"),
+            &r.name,
+            &format!(
+                "every element it claims is claimed again by {list} (later entries override earlier ones), so it applies nowhere"
+            ),
+        ));
     }
     let base_density = match (m.density, m.total_mass) {
         (Some(d), _) => d,
@@ -376,10 +511,19 @@ pub fn material_regions(scene: &LoadedScene, mesh: &Mesh) -> Result<MaterialRegi
                     .filter(|(r, _)| r.density.is_none())
                     .map(|(_, a)| a)
                     .sum::<Real>();
-            if own >= total || rest <= 0.0 {
+            if rest <= 0.0 {
                 return Err(scene.error(
                     "material.total_mass",
-                    total,
+                    readable(total),
+                    &format!(
+                        "every element belongs to a [[regions]] entry with its own density (together {own:.4} kg), so nothing is left for total_mass to weigh; give material.density instead"
+                    ),
+                ));
+            }
+            if own >= total {
+                return Err(scene.error(
+                    "material.total_mass",
+                    readable(total),
                     &format!(
                         "must exceed the {own:.4} kg the regions with their own density weigh"
                     ),
@@ -448,6 +592,12 @@ fn build_unloaded_model<E: Energy>(
     let s = &scene.scene;
     let err = solver_err(scene);
     let mut model = if s.regions.is_empty() {
+        let density = match (s.material.total_mass, s.material.density) {
+            (_, Some(d)) => d,
+            (Some(total), None) => total / mesh.area(),
+            (None, None) => unreachable!("validated: one of total_mass and density is given"),
+        };
+        check_masses(scene, &mesh, &[], &[density])?;
         match (s.material.total_mass, s.material.density) {
             (Some(total), _) => Model::with_total_mass(mesh, energy, total),
             (None, Some(density)) => Model::with_density(mesh, energy, density),
@@ -465,6 +615,8 @@ fn build_unloaded_model<E: Energy>(
             let e = energy.with_lame(lame);
             energies.push(e.map_err(|e| scene.error(&field, &r.name, &e.to_string()))?);
         }
+        let per_region: Vec<Real> = regions.materials.iter().map(|m| m.density).collect();
+        check_masses(scene, &mesh, &regions.tags, &per_region)?;
         let densities = regions.element_densities();
         let masses = mesh
             .lumped_masses_from_densities(&densities)
@@ -585,6 +737,78 @@ fn build_unloaded_model<E: Energy>(
             .map_err(&err)?;
     }
     Ok(model)
+}
+
+/// Check that every vertex gets a usable lumped mass: each triangle's share (density x area /
+/// 3) a normal floating-point number, each vertex's sum finite. A density (or total mass) so
+/// small that the shares underflow, or so large that the sums overflow, is an error naming the
+/// field that gave it (`regions.0.density`, `material.density`, `material.total_mass`) rather
+/// than the vertex mass it broke. `tags` is the region of each triangle (empty: all region 0),
+/// `densities` each region's density (region 0 is `[material]`, `k` is `regions.(k - 1)`).
+fn check_masses(
+    scene: &LoadedScene,
+    mesh: &Mesh,
+    tags: &[u32],
+    densities: &[Real],
+) -> Result<(), SceneError> {
+    let s = &scene.scene;
+    let region = |t: usize| tags.get(t).map_or(0, |&k| k as usize);
+    // The field (and its value) that gave region k its density.
+    let source = |k: usize| -> (String, Real) {
+        if k > 0
+            && let Some(d) = s.regions[k - 1].density
+        {
+            return (format!("regions.{}.density", k - 1), d);
+        }
+        match (s.material.density, s.material.total_mass) {
+            (Some(d), _) => ("material.density".into(), d),
+            (None, Some(total)) => ("material.total_mass".into(), total),
+            (None, None) => ("material.density".into(), densities[0]),
+        }
+    };
+    let mut masses = vec![0.0; mesh.n_vertices()];
+    // The densest triangle around each vertex, to name when its sum overflows.
+    let mut densest: Vec<Option<usize>> = vec![None; mesh.n_vertices()];
+    for (t, (tri, el)) in mesh.triangles().iter().zip(mesh.elements()).enumerate() {
+        let k = region(t);
+        let third = densities[k] * el.area / 3.0;
+        if !third.is_normal() {
+            let (field, value) = source(k);
+            let (size, flow) = if third.is_finite() {
+                ("small", "underflow")
+            } else {
+                ("large", "overflow")
+            };
+            return Err(scene.error(
+                &field,
+                readable(value),
+                &format!(
+                    "too {size}: the lumped vertex masses {flow} (triangles[{t}], of {:.3e} m^2 at {} kg/m^3, would give each of its vertices {third:e} kg)",
+                    el.area,
+                    readable(densities[k])
+                ),
+            ));
+        }
+        for &v in tri {
+            let v = v as usize;
+            masses[v] += third;
+            if densest[v].is_none_or(|d| densities[k] > densities[region(d)]) {
+                densest[v] = Some(t);
+            }
+        }
+    }
+    if let Some(v) = masses.iter().position(|m| !m.is_finite()) {
+        let (field, value) = source(densest[v].map_or(0, region));
+        return Err(scene.error(
+            &field,
+            readable(value),
+            &format!(
+                "too large: the lumped vertex masses overflow (vertex {v} would weigh {:e} kg)",
+                masses[v]
+            ),
+        ));
+    }
+    Ok(())
 }
 
 /// Add the scene's loads to `model`: gravity and the `[[traction]]` entries (consistent nodal

@@ -89,9 +89,64 @@ impl Default for DragTrajectory {
     }
 }
 
+/// Most events a drag may hold: an hour of hand events at 90 Hz (a VR controller's rate; the
+/// app records at most one per animation frame, 60 Hz), 324,000. A run replays a drag of
+/// simulated seconds, so an hour is far beyond any use; in memory the events take 40 bytes
+/// each, 13 MB at the bound. [`DragTrajectory::parse`] counts them before it reads them, so a
+/// text of more is refused without holding them, and a file larger than
+/// [`MAX_DRAG_FILE_BYTES`] is refused before it is read.
+pub const MAX_DRAG_EVENTS: usize = 324_000;
+
+/// Most bytes a drag file may have: 256 per event of [`MAX_DRAG_EVENTS`] (83 MB). The JSON
+/// [`DragTrajectory::to_json`] writes takes about 110 bytes per event, so every file of at most
+/// that many events fits; a reader checks the size before it reads the text, which would
+/// otherwise be held whole (a file of ten million events is 0.3 GB).
+pub const MAX_DRAG_FILE_BYTES: u64 = 256 * MAX_DRAG_EVENTS as u64;
+
+/// The number of entries of a drag's `events` array, counted without keeping them; `None`
+/// when the text is not a JSON object with an `events` array (the full parse says why).
+fn count_events(text: &str) -> Option<usize> {
+    struct Count(usize);
+    impl<'de> Deserialize<'de> for Count {
+        fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+            struct Counter;
+            impl<'de> serde::de::Visitor<'de> for Counter {
+                type Value = Count;
+                fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                    f.write_str("an array")
+                }
+                fn visit_seq<A: serde::de::SeqAccess<'de>>(
+                    self,
+                    mut seq: A,
+                ) -> Result<Count, A::Error> {
+                    let mut n = 0;
+                    while seq.next_element::<serde::de::IgnoredAny>()?.is_some() {
+                        n += 1;
+                    }
+                    Ok(Count(n))
+                }
+            }
+            d.deserialize_seq(Counter)
+        }
+    }
+    #[derive(Deserialize)]
+    struct Events {
+        events: Count,
+    }
+    serde_json::from_str::<Events>(text)
+        .ok()
+        .map(|e| e.events.0)
+}
+
 impl DragTrajectory {
-    /// Parse and validate the JSON form; errors name `origin` and the field.
+    /// Parse and validate the JSON form; errors name `origin` and the field. A leading UTF-8
+    /// byte-order mark is skipped; more than [`MAX_DRAG_EVENTS`] events are an error, found
+    /// before the events are read.
     pub fn parse(text: &str, origin: &str) -> Result<Self, SceneError> {
+        let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+        if let Some(n) = count_events(text) {
+            too_many(n, origin)?;
+        }
         let de = &mut serde_json::Deserializer::from_str(text);
         let drag: DragTrajectory = serde_path_to_error::deserialize(de).map_err(|e| {
             let path = e.path().to_string();
@@ -115,6 +170,7 @@ impl DragTrajectory {
         if self.version != 1 {
             return Err(err("version".into(), self.version.to_string(), "must be 1"));
         }
+        too_many(self.events.len(), origin)?;
         let mut last = 0.0;
         for (i, e) in self.events.iter().enumerate() {
             if !(e.t.is_finite() && e.t >= last) {
@@ -146,6 +202,14 @@ impl DragTrajectory {
                     "must be a finite number >= 0 (0 for a pin, N/m for a spring)",
                 ));
             }
+            if k > crate::scales::MAX_FORCE_SCALE {
+                // Its pull over a metre would be beyond what sums of squared forces hold.
+                return Err(err(
+                    format!("events.{i}.stiffness"),
+                    format!("{k:e}"),
+                    "must be at most 1e150 N/m: its pull over a metre would overflow double precision",
+                ));
+            }
         }
         Ok(())
     }
@@ -154,6 +218,16 @@ impl DragTrajectory {
     pub fn to_json(&self) -> String {
         serde_json::to_string_pretty(self).unwrap_or_default()
     }
+}
+
+/// The error of a drag of `n` events, more than [`MAX_DRAG_EVENTS`].
+fn too_many(n: usize, origin: &str) -> Result<(), SceneError> {
+    if n <= MAX_DRAG_EVENTS {
+        return Ok(());
+    }
+    Err(SceneError::Scene(format!(
+        "{origin}: events = ({n} events): must hold at most {MAX_DRAG_EVENTS} (fem_scene::drag::MAX_DRAG_EVENTS, an hour of hand events at 90 Hz)"
+    )))
 }
 
 /// What a hand holds.
@@ -405,6 +479,10 @@ mod tests {
                 r#"{"events": [{"t": 0.0, "action": "grab", "x": 1.0, "y": 2.0, "stiffness": -3.0}]}"#,
                 "d.json: events.0.stiffness = -3: must be a finite number >= 0 (0 for a pin, N/m for a spring)",
             ),
+            (
+                r#"{"events": [{"t": 0.0, "action": "grab", "x": 1.0, "y": 2.0, "stiffness": 1e300}]}"#,
+                "d.json: events.0.stiffness = 1e300: must be at most 1e150 N/m: its pull over a metre would overflow double precision",
+            ),
         ];
         for (text, want) in cases {
             assert_eq!(
@@ -429,6 +507,63 @@ mod tests {
             assert!(e.starts_with("d.json: ") && e.contains(needle), "{e}");
             assert!(!e.contains('\n'), "{e}");
         }
+    }
+
+    #[test]
+    fn a_byte_order_mark_before_the_json_is_skipped() {
+        let text = r#"{"events": [{"t": 0.0, "action": "release"}]}"#;
+        let with_bom = format!("\u{feff}{text}");
+        assert_eq!(
+            DragTrajectory::parse(&with_bom, "d.json").unwrap(),
+            DragTrajectory::parse(text, "d.json").unwrap()
+        );
+    }
+
+    #[test]
+    fn more_events_than_the_bound_are_an_error_naming_the_file_and_the_count() {
+        let event = r#"{"t":0,"action":"release"},"#;
+        let file = |n: usize| {
+            let mut text = String::from(r#"{"events":["#);
+            text.push_str(&event.repeat(n));
+            text.pop();
+            text.push_str("]}");
+            text
+        };
+        let at = DragTrajectory::parse(&file(MAX_DRAG_EVENTS), "d.json").unwrap();
+        assert_eq!(at.events.len(), MAX_DRAG_EVENTS);
+        let e = DragTrajectory::parse(&file(MAX_DRAG_EVENTS + 1), "d.json")
+            .unwrap_err()
+            .to_string();
+        assert_eq!(
+            e,
+            "d.json: events = (324001 events): must hold at most 324000 (fem_scene::drag::MAX_DRAG_EVENTS, an hour of hand events at 90 Hz)"
+        );
+        // A drag built in code is held to the same bound.
+        let mut built = at;
+        built.events.push(built.events[0]);
+        assert!(built.validate("app").is_err());
+        // The file size bound holds every file `to_json` writes: its longest event (a grab,
+        // every number 17 significant digits and negative) takes less than 256 bytes.
+        let long = -0.012_345_678_901_234_567;
+        let one = DragTrajectory {
+            version: 1,
+            events: vec![
+                DragEvent {
+                    t: 1_234.567_890_123_456_7,
+                    action: DragAction::Grab {
+                        x: long,
+                        y: long,
+                        stiffness: 12_345.678_901_234_567,
+                    },
+                };
+                2
+            ],
+        };
+        let per_event = one.to_json().len() - DragTrajectory::default().to_json().len();
+        assert!(
+            (per_event as u64) < 2 * MAX_DRAG_FILE_BYTES / MAX_DRAG_EVENTS as u64,
+            "{per_event}"
+        );
     }
 
     #[test]

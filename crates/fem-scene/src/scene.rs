@@ -17,6 +17,7 @@ use std::str::FromStr;
 
 use fem_core::PlaneModel;
 use fem_core::energy::EnergyKind;
+use fem_core::math::readable;
 use fem_core::structured::Diagonal;
 use serde::{Deserialize, Serialize};
 
@@ -518,13 +519,16 @@ impl LoadedScene {
     }
 }
 
-/// Parse `text` (from `origin`), apply `overrides` (`key=value`), deserialize and validate.
+/// Parse `text` (from `origin`; a leading UTF-8 byte-order mark is skipped), apply `overrides`
+/// (`key=value`), deserialize and validate.
 pub fn parse_scene(
     text: &str,
     origin: &str,
     base_dir: &Path,
     overrides: &[String],
 ) -> Result<LoadedScene, SceneError> {
+    // A UTF-8 byte-order mark, which some editors write first, is not part of the TOML.
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
     let mut table: toml::Table = text.parse().map_err(|e: toml::de::Error| {
         let place = e
             .span()
@@ -671,21 +675,29 @@ impl LoadedScene {
             if v.is_finite() {
                 Ok(())
             } else {
-                Err(self.error(field, v, "must be a finite number"))
+                Err(self.error(field, readable(v), "must be a finite number"))
             }
         };
         let positive = |field: &str, v: f64, unit: &str| -> Result<(), SceneError> {
             if v.is_finite() && v > 0.0 {
                 Ok(())
             } else {
-                Err(self.error(field, v, &format!("must be a finite number > 0 ({unit})")))
+                Err(self.error(
+                    field,
+                    readable(v),
+                    &format!("must be a finite number > 0 ({unit})"),
+                ))
             }
         };
         let non_negative = |field: &str, v: f64, unit: &str| -> Result<(), SceneError> {
             if v.is_finite() && v >= 0.0 {
                 Ok(())
             } else {
-                Err(self.error(field, v, &format!("must be a finite number >= 0 ({unit})")))
+                Err(self.error(
+                    field,
+                    readable(v),
+                    &format!("must be a finite number >= 0 ({unit})"),
+                ))
             }
         };
         let point = |field: &str, p: [f64; 2]| -> Result<(), SceneError> {
@@ -725,13 +737,17 @@ impl LoadedScene {
                 "must lie in the open interval (-1, 0.5)",
             ));
         }
+        // The range of Young's modulus (fem_core::material::MIN_YOUNGS_MODULUS and
+        // MAX_YOUNGS_MODULUS); the message names `material.youngs_modulus`.
+        fem_core::Material::new(m.youngs_modulus, m.poisson_ratio, 1.0)
+            .map_err(|e| SceneError::Scene(format!("{}: {e}", self.origin)))?;
         match (m.total_mass, m.density) {
             (Some(t), None) => positive("material.total_mass", t, "kg per unit thickness")?,
             (None, Some(d)) => positive("material.density", d, "kg/m^3")?,
             (Some(_), Some(_)) => {
                 return Err(self.error(
                     "material.density",
-                    m.density.unwrap_or_default(),
+                    readable(m.density.unwrap_or_default()),
                     "give total_mass or density, not both",
                 ));
             }
@@ -1040,21 +1056,26 @@ impl LoadedScene {
     fn validate_regions(&self) -> Result<(), SceneError> {
         let s = &self.scene;
         if let Some(name) = &s.material.name
-            && name.trim().is_empty()
+            && let Err(rule) = fem_mesh::io::check_region_name(name)
         {
-            return Err(self.error("material.name", "\"\"", "must not be empty"));
+            return Err(self.error("material.name", format!("{name:?}"), rule));
+        }
+        if s.regions.len() > MAX_REGIONS {
+            return Err(self.error(
+                "regions",
+                format!("({} entries)", s.regions.len()),
+                &format!("must be at most {MAX_REGIONS} entries (fem_scene::scene::MAX_REGIONS)"),
+            ));
         }
         let mut names = vec![s.material.name()];
         for (i, r) in s.regions.iter().enumerate() {
             let f = format!("regions.{i}");
-            if r.name.trim().is_empty()
-                || r.name.contains([',', '"'])
-                || names.contains(&r.name.as_str())
+            if fem_mesh::io::check_region_name(&r.name).is_err() || names.contains(&r.name.as_str())
             {
                 return Err(self.error(
                     &format!("{f}.name"),
                     format!("{:?}", r.name),
-                    "must be non-empty, without commas or quotes, and differ from material.name and the other regions' names",
+                    "must be non-empty, without commas, double quotes or control characters (line breaks, tabs), and differ from material.name and the other regions' names",
                 ));
             }
             names.push(&r.name);
@@ -1088,32 +1109,16 @@ impl LoadedScene {
                 }
                 (None, false) => {}
             }
-            if let Some(e) = r.youngs_modulus
-                && !(e.is_finite() && e > 0.0)
-            {
-                return Err(self.error(
-                    &format!("{f}.youngs_modulus"),
-                    e,
-                    "must be a finite number > 0 (Pa)",
-                ));
-            }
-            if let Some(nu) = r.poisson_ratio
-                && !(nu > -1.0 && nu < 0.5)
-            {
-                return Err(self.error(
-                    &format!("{f}.poisson_ratio"),
-                    nu,
-                    "must lie in the open interval (-1, 0.5)",
-                ));
-            }
-            if let Some(d) = r.density
-                && !(d.is_finite() && d > 0.0)
-            {
-                return Err(self.error(
-                    &format!("{f}.density"),
-                    d,
-                    "must be a finite number > 0 (kg/m^3)",
-                ));
+            // The material's own rules (fem_core::Material::new: Young's modulus in
+            // [MIN_YOUNGS_MODULUS, MAX_YOUNGS_MODULUS], the Poisson ratio in (-1, 0.5)), named
+            // as the entry's fields. The base material's values are valid (checked above), so
+            // a field the entry does not set never fails here.
+            if let Err(e) = fem_core::Material::new(
+                r.youngs_modulus.unwrap_or(s.material.youngs_modulus),
+                r.poisson_ratio.unwrap_or(s.material.poisson_ratio),
+                r.density.unwrap_or(1.0),
+            ) {
+                return Err(self.error(&format!("{f}.{}", e.field), readable(e.value), e.rule));
             }
         }
         Ok(())
@@ -1253,6 +1258,13 @@ impl LoadedScene {
     }
 }
 
+/// Most `[[regions]]` entries a scene may have. Tagging the elements costs one pass over them
+/// per entry (a point-in-polygon test each), and every entry adds four columns to
+/// `regions.csv` and a record to every summary; a body has a handful of tissues (case D:
+/// soft tissue and seven bones), and a thousand leaves room for a study per muscle or per
+/// skin patch while keeping that work below a run's.
+pub const MAX_REGIONS: usize = 1000;
+
 fn motion_name(m: MotionName) -> &'static str {
     match m {
         MotionName::Static => "static",
@@ -1261,9 +1273,9 @@ fn motion_name(m: MotionName) -> &'static str {
     }
 }
 
-/// `[x, y]` for messages.
+/// `[x, y]` for messages (numbers too long to read in scientific notation).
 pub(crate) fn fmt_point(p: [f64; 2]) -> String {
-    format!("[{}, {}]", p[0], p[1])
+    format!("[{}, {}]", readable(p[0]), readable(p[1]))
 }
 
 /// Shoelace signed area (positive counter-clockwise).

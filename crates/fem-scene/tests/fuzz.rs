@@ -17,11 +17,19 @@ const KEYS: &[&str] = &[
     "mesh.height",
     "mesh.diagonal",
     "mesh.rotate_deg",
+    "mesh.align_min",
+    "mesh.max_area",
     "material.youngs_modulus",
     "material.poisson_ratio",
     "material.density",
     "material.total_mass",
     "material.plane",
+    "material.name",
+    "regions.0.name",
+    "regions.0.density",
+    "regions.0.youngs_modulus",
+    "regions.0.poisson_ratio",
+    "regions.0.polygon",
     "solver.kind",
     "solver.dt",
     "solver.steps",
@@ -75,6 +83,9 @@ const VALUES: &[&str] = &[
     "[0.0]",
     "[0.0, 0.0]",
     "[1e308, 1e308]",
+    "[1e300, 0.0]",
+    "\"a\\nb\"",
+    "\"a,b\"",
     "[[0.0, 0.0], [1.0, 0.0]]",
     "[[0.0, 0.0], [1.0, 1.0], [1.0, 0.0], [0.0, 1.0]]",
     "[[1.4, 0.5], [1.6, 0.5], [1.5, 0.7]]",
@@ -144,6 +155,35 @@ proptest! {
                 let v: Vec<[f64; 2]> = m.vertices.clone();
                 if let Err(e) = fem_core::mesh::Mesh::from_arrays(&v, &m.triangles) {
                     prop_assert_eq!(e.to_string().lines().count(), 1, "{}", e);
+                }
+            }
+        }
+    }
+
+    /// Random region keys on a valid mesh (tags in and out of range, names repeated, empty,
+    /// with commas or line breaks): a mesh or a one-line error, and never a mesh whose names
+    /// repeat or break the name rule.
+    #[test]
+    fn random_region_keys_never_panic_and_bad_names_are_refused(
+        tags in prop::collection::vec(prop::sample::select(vec![0u32, 1, 2, 70_000, u32::MAX]), 0..4),
+        names in prop::collection::vec(
+            prop::sample::select(vec!["b", "b", "", " ", "a,b", "a\nb", "q\"q", "soft tissue"]),
+            0..4,
+        ),
+    ) {
+        let json = serde_json::json!({
+            "vertices": [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]],
+            "triangles": [[0, 1, 2], [0, 2, 3]],
+            "regions": tags,
+            "region_names": names,
+        })
+        .to_string();
+        match fem_mesh::io::parse_mesh_json(json.as_bytes(), std::path::Path::new("fuzz.json")) {
+            Err(e) => prop_assert_eq!(e.to_string().lines().count(), 1, "{}", e),
+            Ok(m) => {
+                for (k, n) in m.region_names.iter().enumerate() {
+                    prop_assert!(fem_mesh::io::check_region_name(n).is_ok(), "{:?}", n);
+                    prop_assert!(!m.region_names[..k].contains(n), "{:?}", m.region_names);
                 }
             }
         }

@@ -192,3 +192,160 @@ fn each_region_reports_its_stress_strain_and_area_above_the_threshold() {
         );
     }
 }
+
+/// A second `[[regions]]` entry over the whole of the first: the first owns no element, which
+/// the docs call an error (before: accepted, with area 0 in the outputs).
+#[test]
+fn an_entry_every_element_of_which_a_later_entry_claims_again_is_an_error_naming_both() {
+    let text = BAR.replace(
+        "\n[solver]",
+        "\n[[regions]]\nname = \"cover\"\npolygon = [[0.5, -1.0], [3.0, -1.0], [3.0, 1.0], [0.5, 1.0]]\n\n[solver]",
+    );
+    let scene = parse_scene(&text, "bar.toml", Path::new("."), &[]).unwrap();
+    let mesh = build_mesh(&scene, &NoFiles).unwrap();
+    let e = material_regions(&scene, &mesh).unwrap_err().to_string();
+    assert_eq!(
+        e,
+        "bar.toml: regions.0 = stiff: every element it claims is claimed again by regions.1 (later entries override earlier ones), so it applies nowhere"
+    );
+    // Overridden by two later entries, each over one half: both are named.
+    let two = BAR.replace(
+        "\n[solver]",
+        "\n[[regions]]\nname = \"lower\"\npolygon = [[0.5, -1.0], [3.0, -1.0], [3.0, 0.1], [0.5, 0.1]]\n\n[[regions]]\nname = \"upper\"\npolygon = [[0.5, 0.1], [3.0, 0.1], [3.0, 1.0], [0.5, 1.0]]\n\n[solver]",
+    );
+    let scene = parse_scene(&two, "bar.toml", Path::new("."), &[]).unwrap();
+    let mesh = build_mesh(&scene, &NoFiles).unwrap();
+    let e = material_regions(&scene, &mesh).unwrap_err().to_string();
+    assert!(
+        e.contains(
+            "regions.0 = stiff: every element it claims is claimed again by regions.1 and regions.2"
+        ),
+        "{e}"
+    );
+    // Partly overridden is fine: the first keeps what the later entry leaves.
+    let part = BAR.replace(
+        "\n[solver]",
+        "\n[[regions]]\nname = \"tip\"\npolygon = [[1.5, -1.0], [3.0, -1.0], [3.0, 1.0], [1.5, 1.0]]\n\n[solver]",
+    );
+    let scene = parse_scene(&part, "bar.toml", Path::new("."), &[]).unwrap();
+    let mesh = build_mesh(&scene, &NoFiles).unwrap();
+    let regions = material_regions(&scene, &mesh).unwrap();
+    assert_eq!(regions.tags.iter().filter(|&&t| t == 1).count(), 20);
+}
+
+/// More `[[regions]]` entries than `fem_scene::scene::MAX_REGIONS`: one line naming the count
+/// (before: 50,000 entries were accepted).
+#[test]
+fn more_regions_than_the_bound_are_an_error_naming_the_count() {
+    use fem_scene::scene::MAX_REGIONS;
+    let entries = |n: usize| -> String {
+        (0..n)
+            .map(|k| {
+                format!(
+                    "[[regions]]\nname = \"r{k}\"\npolygon = [[1.0, -1.0], [3.0, -1.0], [3.0, 1.0]]\n"
+                )
+            })
+            .collect()
+    };
+    let text = |n: usize| BAR.replace("\n[solver]", &format!("\n{}\n[solver]", entries(n)));
+    // At the bound the entries parse (the later ones override the earlier ones: that is
+    // found when the mesh is tagged, not here).
+    parse_scene(&text(MAX_REGIONS - 1), "bar.toml", Path::new("."), &[]).unwrap();
+    let e = parse_scene(&text(MAX_REGIONS), "bar.toml", Path::new("."), &[])
+        .unwrap_err()
+        .to_string();
+    assert_eq!(
+        e,
+        format!(
+            "bar.toml: regions = ({} entries): must be at most {MAX_REGIONS} entries (fem_scene::scene::MAX_REGIONS)",
+            MAX_REGIONS + 1
+        )
+    );
+}
+
+/// Region names are one CSV field and one line as they are: a comma, a double quote or a line
+/// break in `regions.N.name` or `material.name` is an error (before: a line break split the
+/// header of regions.csv, and `material.name` took commas).
+#[test]
+fn region_names_with_commas_quotes_or_line_breaks_are_errors() {
+    for bad in ["a,b", "a\"b", "a\nb", "a\tb", " "] {
+        let quoted = toml::Value::String(bad.into()).to_string();
+        let e = scene(&[&format!("regions.0.name={quoted}")]).unwrap_err();
+        assert!(
+            e.contains(&format!("regions.0.name = {bad:?}: must be non-empty, without commas, double quotes or control characters")),
+            "{bad:?}: {e}"
+        );
+        assert!(!e.contains('\n'), "{e}");
+        let e = scene(&[&format!("material.name={quoted}")]).unwrap_err();
+        assert!(
+            e.contains(&format!(
+                "material.name = {bad:?}: must be non-empty, without commas"
+            )),
+            "{bad:?}: {e}"
+        );
+    }
+    // Spaces, dashes and other punctuation are fine.
+    scene(&["regions.0.name=\"cortical bone (left)\""]).unwrap();
+}
+
+/// A region density so small that the vertex masses underflow names the region's field and
+/// value (before: `masses[0] = 0`); so does a Young's modulus or a Poisson ratio out of range
+/// (before: reported under `material.youngs_modulus`).
+#[test]
+fn a_regions_density_or_elastic_constants_out_of_range_name_its_own_fields() {
+    use fem_scene::run::{RunEnv, run};
+    let s = scene(&["regions.0.density=5e-324"]).unwrap();
+    let e = run(&s, &mut RunEnv::default()).unwrap_err().to_string();
+    assert!(
+        e.starts_with(
+            "bar.toml: regions.0.density = 5e-324: too small: the lumped vertex masses underflow"
+        ),
+        "{e}"
+    );
+    // The base material's density, by the same rule.
+    let s = scene(&["material.density=1e-320"]).unwrap();
+    let e = run(&s, &mut RunEnv::default()).unwrap_err().to_string();
+    assert!(
+        e.starts_with("bar.toml: material.density = 1e-320: too small"),
+        "{e}"
+    );
+    let cases: [(&str, &str); 4] = [
+        (
+            "regions.0.youngs_modulus=5e-324",
+            "bar.toml: regions.0.youngs_modulus = 5e-324: must be at least 1e-290 Pa",
+        ),
+        (
+            "regions.0.youngs_modulus=1e300",
+            "bar.toml: regions.0.youngs_modulus = 1e300: must be at most 1e290 Pa",
+        ),
+        (
+            "regions.0.poisson_ratio=-1",
+            "bar.toml: regions.0.poisson_ratio = -1: must lie in the open interval (-1, 0.5)",
+        ),
+        (
+            "material.youngs_modulus=1e300",
+            "bar.toml: material.youngs_modulus = 1e300: must be at most 1e290 Pa",
+        ),
+    ];
+    for (set, want) in cases {
+        let e = scene(&[set]).unwrap_err();
+        assert!(e.starts_with(want), "{set}: {e}");
+    }
+}
+
+/// `material.total_mass` with every element in a region of its own density has nothing to
+/// weigh: the message says so (before: "total_mass 1e9 must exceed 120 kg").
+#[test]
+fn a_total_mass_with_nothing_left_to_weigh_says_so() {
+    let text = BAR.replace("density = 100.0", "total_mass = 1e9").replace(
+        "polygon = [[1.0, -1.0], [3.0, -1.0], [3.0, 1.0], [1.0, 1.0]]",
+        "polygon = [[-1.0, -1.0], [3.0, -1.0], [3.0, 1.0], [-1.0, 1.0]]",
+    );
+    let scene = parse_scene(&text, "bar.toml", Path::new("."), &[]).unwrap();
+    let mesh = build_mesh(&scene, &NoFiles).unwrap();
+    let e = material_regions(&scene, &mesh).unwrap_err().to_string();
+    assert_eq!(
+        e,
+        "bar.toml: material.total_mass = 1000000000: every element belongs to a [[regions]] entry with its own density (together 120.0000 kg), so nothing is left for total_mass to weigh; give material.density instead"
+    );
+}

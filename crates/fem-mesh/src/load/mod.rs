@@ -83,15 +83,18 @@ fn parse_model_as(
     path: &Path,
     options: &LoadOptions,
 ) -> Result<Surface3> {
+    // A text file (OBJ, a PLY header) may start with a UTF-8 byte-order mark; binary STL is
+    // recognised by its size, so its bytes are left as they are (parse_stl skips the mark of
+    // an ASCII STL itself).
     Ok(match format {
-        ModelFormat::Obj => parse_obj(bytes, path, options)?,
+        ModelFormat::Obj => parse_obj(crate::io::strip_bom(bytes), path, options)?,
         ModelFormat::Stl => {
             reject_groups(path, options)?;
             parse_stl(bytes, path)?
         }
         ModelFormat::Ply => {
             reject_groups(path, options)?;
-            parse_ply(bytes, path)?
+            parse_ply(crate::io::strip_bom(bytes), path)?
         }
     })
 }

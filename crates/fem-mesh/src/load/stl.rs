@@ -17,9 +17,10 @@ pub fn parse_stl(bytes: &[u8], path: &Path) -> Result<Surface3> {
             return parse_binary(bytes, count as usize, path);
         }
     }
-    let trimmed = bytes.trim_ascii_start();
-    if trimmed.starts_with(b"solid") {
-        return parse_ascii(bytes, path);
+    // An ASCII file may start with a UTF-8 byte-order mark.
+    let text = crate::io::strip_bom(bytes);
+    if text.trim_ascii_start().starts_with(b"solid") {
+        return parse_ascii(text, path);
     }
     if bytes.len() >= 84 {
         let count = u32::from_le_bytes([bytes[80], bytes[81], bytes[82], bytes[83]]) as u64;

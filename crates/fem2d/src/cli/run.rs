@@ -120,8 +120,27 @@ pub fn overrides(
     o
 }
 
+/// `--dt` must be a finite number (a finite value that is not > 0 reaches the scene's
+/// validation as `solver.dt`, which a later `--set solver.dt` may still replace): a NaN or an
+/// infinity would otherwise reach the scene as a string.
+pub fn check_dt(dt: Option<f64>) -> Result<(), String> {
+    match dt {
+        Some(dt) if !dt.is_finite() => Err(format!("--dt {dt}: must be a finite number > 0 (s)")),
+        _ => Ok(()),
+    }
+}
+
 /// Runs `fem2d run`.
 pub fn run(args: &RunArgs) -> Result<(), String> {
+    check_dt(args.dt)?;
+    if let Some(kpa) = args.stress_threshold
+        && !(kpa.is_finite() && (0.0..=1e305).contains(&kpa))
+    {
+        return Err(format!(
+            "--stress-threshold {}: must be a finite number >= 0 (kPa), at most 1e305",
+            fem_core::math::readable(kpa)
+        ));
+    }
     let mut overrides = overrides(
         args.energy.as_deref(),
         args.solver.as_deref(),
@@ -150,8 +169,7 @@ pub fn run(args: &RunArgs) -> Result<(), String> {
         None => None,
         Some(path) => {
             let name = path.display().to_string();
-            let text = std::fs::read_to_string(path)
-                .map_err(|e| format!("{name}: cannot read the drag file: {e}"))?;
+            let text = read_drag_file(path, &name)?;
             Some(DragTrajectory::parse(&text, &name).map_err(|e| e.to_string())?)
         }
     };
@@ -349,6 +367,34 @@ pub fn run(args: &RunArgs) -> Result<(), String> {
         )),
         None => Ok(()),
     }
+}
+
+/// The text of the drag file at `path` (named `name`), refused unread when it is larger than
+/// any drag of `fem_scene::drag::MAX_DRAG_EVENTS` events needs.
+fn read_drag_file(path: &std::path::Path, name: &str) -> Result<String, String> {
+    use fem_scene::drag::{MAX_DRAG_EVENTS, MAX_DRAG_FILE_BYTES};
+    use std::io::Read;
+    let cannot = |e: std::io::Error| format!("{name}: cannot read the drag file: {e}");
+    let too_large = |size: String| {
+        format!(
+            "{name}: size = {size}: must be at most {MAX_DRAG_FILE_BYTES} bytes (fem_scene::drag::MAX_DRAG_FILE_BYTES, 256 per event of at most {MAX_DRAG_EVENTS})"
+        )
+    };
+    let file = std::fs::File::open(path).map_err(cannot)?;
+    if let Ok(meta) = file.metadata()
+        && meta.len() > MAX_DRAG_FILE_BYTES
+    {
+        return Err(too_large(format!("{} bytes", meta.len())));
+    }
+    // One byte more than the bound tells a stream (a pipe) over it.
+    let mut bytes = Vec::new();
+    file.take(MAX_DRAG_FILE_BYTES + 1)
+        .read_to_end(&mut bytes)
+        .map_err(cannot)?;
+    if bytes.len() as u64 > MAX_DRAG_FILE_BYTES {
+        return Err(too_large(format!("more than {MAX_DRAG_FILE_BYTES} bytes")));
+    }
+    String::from_utf8(bytes).map_err(|e| format!("{name}: cannot read the drag file: {e}"))
 }
 
 /// Most frames of an animated GIF (`--gif`): about 20 s at the default 50 ms per frame.

@@ -186,6 +186,40 @@ fn shards_cover_a_sweep_once_and_merge_joins_them() {
     assert!(err.contains("different sweep spec"), "{err}");
 }
 
+/// A UTF-8 byte-order mark before a sweep spec or a shard file (an editor's) is skipped.
+#[test]
+fn a_byte_order_mark_before_a_sweep_spec_or_a_shard_is_skipped() {
+    let dir = scratch("sweep-bom");
+    let spec = dir.join("spec.toml");
+    std::fs::write(
+        &spec,
+        "\u{feff}scene = \"case-a\"\nset = [\"solver.steps=10\"]\n\n[[axis]]\nkey = \"energy\"\nvalues = [\"stvk\"]\n",
+    )
+    .unwrap();
+    let shards = dir.join("shards");
+    ok(&fem2d(&[
+        "sweep",
+        arg(&spec),
+        "--shard",
+        "0/1",
+        "--threads",
+        "1",
+        "--out",
+        arg(&shards),
+    ]));
+    let shard = shards.join("shard-0-of-1.json");
+    let text = std::fs::read(&shard).unwrap();
+    std::fs::write(&shard, [b"\xEF\xBB\xBF".as_slice(), &text].concat()).unwrap();
+    ok(&fem2d(&[
+        "merge",
+        arg(&shard),
+        "--out",
+        arg(&dir.join("merged")),
+    ]));
+    assert!(dir.join("merged/sweep.json").exists());
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
 #[test]
 fn sweep_rejects_bad_specs_and_shards_in_one_line() {
     let dir = scratch("sweep-bad");

@@ -665,6 +665,69 @@ fn bad_input_is_one_error_line_and_no_output() {
             vec!["case-a", "--gif", "--gif-every", "1", "--steps", "100000"],
             vec!["--gif-every 1", "10002 frames", "at most 400"],
         ),
+        // Float flags that are not finite name the flag (before: `output.stress_threshold:
+        // invalid type: string "NaN"`, `solver.dt: invalid type: string`).
+        (
+            vec!["case-a", "--stress-threshold", "nan"],
+            vec!["error: --stress-threshold NaN: must be a finite number >= 0 (kPa)"],
+        ),
+        (
+            vec!["case-a", "--stress-threshold", "-5"],
+            vec!["error: --stress-threshold -5: must be a finite number >= 0 (kPa)"],
+        ),
+        (
+            vec!["case-a", "--stress-threshold", "1e306"],
+            vec![
+                "error: --stress-threshold 1e306: must be a finite number >= 0 (kPa), at most 1e305",
+            ],
+        ),
+        (
+            vec!["case-a", "--dt", "nan"],
+            vec!["error: --dt NaN: must be a finite number > 0 (s)"],
+        ),
+        (
+            vec!["case-a", "--dt", "inf"],
+            vec!["error: --dt inf: must be a finite number > 0 (s)"],
+        ),
+        // A shift so far that round-off collapses the triangles names the shift (before: a
+        // degenerate triangle).
+        (
+            vec!["case-a", "--set", "mesh.align_min=[1e300, 0.0]"],
+            vec![
+                "built-in case-a: mesh.align_min = [1e300, 0]: moves the mesh where floating-point round-off breaks it",
+            ],
+        ),
+        (
+            vec!["case-a", "--set", "mesh.origin=[1e300, 0.0]"],
+            vec![
+                "built-in case-a: mesh.origin = [1e300, 0]: moves the rectangle where floating-point round-off breaks it",
+            ],
+        ),
+        (
+            vec!["case-a", "--set", "mesh.width=1e-300"],
+            vec![
+                "built-in case-a: mesh.width = 1e-300: with mesh.height = 1, nx = 20 and ny = 4 the cells are 5e-302 x 2.5e-1 m",
+            ],
+        ),
+        // A max_area the mesher cannot reach within its Steiner points names mesh.max_area
+        // and the triangles it would need (before: a partly refined mesh was run).
+        (
+            vec!["case-d", "--set", "mesh.max_area=1e-9"],
+            vec![
+                "built-in case-d: mesh.max_area = 0.000000001: the mesher stopped at its 50000 Steiner points",
+                "needs about 349624764 triangles",
+            ],
+        ),
+        (
+            vec!["lower-leg", "--set", "regions.0.youngs_modulus=1e300"],
+            vec!["built-in lower-leg: regions.0.youngs_modulus = 1e300: must be at most 1e290 Pa"],
+        ),
+        (
+            vec!["lower-leg", "--set", "regions.0.density=5e-324"],
+            vec![
+                "built-in lower-leg: regions.0.density = 5e-324: too small: the lumped vertex masses underflow",
+            ],
+        ),
     ];
     for (k, (extra, needles)) in cases.iter().enumerate() {
         let out_dir = dir.join(format!("out-{k}"));
@@ -898,5 +961,67 @@ fn a_recorded_drag_is_replayed_offline() {
         arg(&dir.join("o2")),
     ]);
     assert!(e.contains("bad.json: events.1.t = 0.1"), "{e}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// A UTF-8 byte-order mark, which some editors write first, is skipped in scene files and drag
+/// files (before: "invalid JSON" for the drag, a TOML error for the scene).
+#[test]
+fn a_byte_order_mark_before_a_scene_or_a_drag_file_is_skipped() {
+    let dir = scratch("bom");
+    let scene = dir.join("bom.toml");
+    let text = fem_scene::cases::case_text("case-a").unwrap();
+    std::fs::write(&scene, format!("\u{feff}{text}")).unwrap();
+    let drag = dir.join("drag.json");
+    std::fs::write(
+        &drag,
+        "\u{feff}{\"events\": [{\"t\": 0.0, \"action\": \"grab\", \"x\": 4.99, \"y\": 0.5}]}",
+    )
+    .unwrap();
+    run_ok(
+        &[arg(&scene), "--steps", "5", "--drag", arg(&drag)],
+        &dir.join("out"),
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// A drag file of more events than `fem_scene::drag::MAX_DRAG_EVENTS` is one error line naming
+/// the file, the field and the count, before the run (before: ten million events were read,
+/// 0.9 GB).
+#[test]
+fn a_drag_file_with_more_events_than_the_bound_is_refused() {
+    let dir = scratch("drag-bound");
+    let drag = dir.join("long.json");
+    let n = fem_scene::drag::MAX_DRAG_EVENTS + 1;
+    let mut text = String::from("{\"events\": [");
+    text.push_str(&"{\"t\": 0, \"action\": \"release\"},".repeat(n));
+    text.pop();
+    text.push_str("]}");
+    std::fs::write(&drag, text).unwrap();
+    let out = dir.join("out");
+    let e = one_line_error(&["run", "case-a", "--drag", arg(&drag), "--out", arg(&out)]);
+    assert!(
+        e.contains(&format!(
+            "long.json: events = ({n} events): must hold at most 324000 (fem_scene::drag::MAX_DRAG_EVENTS"
+        )),
+        "{e}"
+    );
+    assert!(!out.exists());
+    // A file larger than any drag of that many events needs is refused before it is read
+    // (a sparse file: nothing is written).
+    let huge = dir.join("huge.json");
+    let bound = fem_scene::drag::MAX_DRAG_FILE_BYTES;
+    std::fs::File::create(&huge)
+        .unwrap()
+        .set_len(bound + 1)
+        .unwrap();
+    let e = one_line_error(&["run", "case-a", "--drag", arg(&huge), "--out", arg(&out)]);
+    assert!(
+        e.contains(&format!(
+            "huge.json: size = {} bytes: must be at most {bound} bytes (fem_scene::drag::MAX_DRAG_FILE_BYTES",
+            bound + 1
+        )),
+        "{e}"
+    );
     std::fs::remove_dir_all(&dir).unwrap();
 }
