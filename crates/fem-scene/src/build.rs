@@ -516,7 +516,8 @@ pub fn material_regions(scene: &LoadedScene, mesh: &Mesh) -> Result<MaterialRegi
                     "material.total_mass",
                     readable(total),
                     &format!(
-                        "every element belongs to a [[regions]] entry with its own density (together {own:.4} kg), so nothing is left for total_mass to weigh; give material.density instead"
+                        "every element belongs to a [[regions]] entry with its own density (together {} kg), so nothing is left for total_mass to weigh; give material.density instead",
+                        kilograms(own)
                     ),
                 ));
             }
@@ -525,7 +526,8 @@ pub fn material_regions(scene: &LoadedScene, mesh: &Mesh) -> Result<MaterialRegi
                     "material.total_mass",
                     readable(total),
                     &format!(
-                        "must exceed the {own:.4} kg the regions with their own density weigh"
+                        "must exceed the {} kg the regions with their own density weigh",
+                        kilograms(own)
                     ),
                 ));
             }
@@ -913,4 +915,15 @@ pub fn build_stepper<E: Energy>(
         .params()
         .build(model)
         .map_err(solver_err(scene))
+}
+
+/// A mass for a message: four decimals without trailing zeros (`60`, `0.125`), scientific
+/// notation beyond `[1e-3, 1e9)` (`1e300`, not three hundred digits).
+fn kilograms(m: f64) -> String {
+    if (1e-3..1e9).contains(&m) {
+        let s = format!("{m:.4}");
+        s.trim_end_matches('0').trim_end_matches('.').to_owned()
+    } else {
+        format!("{m:.4e}")
+    }
 }

@@ -59,8 +59,7 @@ pub fn check_scales<E: fem_core::energy::Energy>(
             field,
             value,
             &format!(
-                "{what} is {} N, beyond {} N: sums of squared forces would overflow double precision",
-                sci(force),
+                "{what} is {force:.3e} N, beyond {} N: sums of squared forces would overflow double precision",
                 sci(MAX_FORCE_SCALE)
             ),
         ))

@@ -224,3 +224,30 @@ fn most_of_the_grid_runs_and_moves() {
         assert!(2 * ran >= total, "{solver}: {ran} of {total} ran");
     }
 }
+
+/// A pin dragged through the ground under implicit Euler: the potential is infinite at the
+/// step's start (the barrier, where the pinned vertex crosses the ground), and the message says
+/// which vertex and what it crosses, not only that the start is not finite.
+#[test]
+fn a_pin_dragged_through_the_ground_names_the_vertex_and_the_ground() {
+    let text =
+        scene("implicit", "stvk", 1e3, 1e3, 9.8, 1e-2, None) + "\n[ground]\nheight = -0.05\n";
+    let scene = parse_scene(&text, "frozen.toml", std::path::Path::new("."), &[]).unwrap();
+    let drag = fem_scene::drag::DragTrajectory::parse(
+        r#"{"version": 1, "events": [
+            {"t": 0.0, "action": "grab", "x": 2.0, "y": 0.0, "stiffness": 0},
+            {"t": 0.01, "action": "move", "x": 2.0, "y": -1.0}]}"#,
+        "drag.json",
+    )
+    .unwrap();
+    let env = &mut RunEnv {
+        drag: Some(&drag),
+        ..RunEnv::default()
+    };
+    let result = run(&scene, env).unwrap();
+    let e = result.summary.blow_up_message.expect("the step fails");
+    assert!(e.contains("implicit.initial_guess = inf"), "{e}");
+    assert!(e.contains("the ground"), "{e}");
+    assert!(e.contains("where the contact barrier is infinite"), "{e}");
+    assert_eq!(e.lines().count(), 1);
+}

@@ -38,7 +38,7 @@ use faer::{Conj, MatMut, Par, Side};
 use fem_core::assembly::{
     Scratch, Stiffness, Tangent, elastic_energy, populate_forces, populate_stiffness,
 };
-use fem_core::energy::{ElementEnergies, Energy};
+use fem_core::energy::{ElementEnergies, Energy, EnergyOf};
 use fem_core::math::{Real, Vec2};
 use fem_core::mesh::Mesh;
 
@@ -1111,10 +1111,11 @@ impl NewtonSolver {
                 trial: rtrial,
                 ..rigid
             };
+            let cause = start_cause(p, x, contact.as_deref());
             return Err(SolverError::invalid(
                 format!("{}.initial_guess", self.prefix),
                 phi,
-                "the potential is not finite at the starting positions",
+                format!("the potential is not finite at the starting positions: {cause}"),
             ));
         }
         let mut residual = self.gradient(
@@ -1414,6 +1415,41 @@ fn permute_to_upper(
 pub(crate) fn force_scale(first: Real, load: &[Vec2], elastic: Real) -> Real {
     let load: Real = load.iter().map(|f| f.norm_squared()).sum::<Real>().sqrt();
     first.max(load).max(elastic).max(1e-12)
+}
+
+/// Why the potential is not finite at `x`, for a message: the first pair in contact or
+/// crossed (a vertex through the ground or an obstacle, where the barrier is infinite), else
+/// the first triangle inverted under an energy that forbids it, else the first vertex whose
+/// coordinates are not finite or so large that the terms overflow.
+fn start_cause<E: Energy>(
+    p: &Potential<'_, E>,
+    x: &[Vec2],
+    contact: Option<&BarrierContact>,
+) -> String {
+    if let Some(at) = contact.and_then(|c| c.start_overlap(x)) {
+        return format!("{at}, where the contact barrier is infinite");
+    }
+    let mesh = p.mesh;
+    for (t, el) in mesh.elements().iter().enumerate() {
+        let f = el.deformation_gradient(mesh.gather(t, x));
+        let psi = p.energy.energy_of(t).psi(&f);
+        if !psi.is_finite() {
+            return format!(
+                "triangle {t} has det F = {:.3e}, where its energy is not finite",
+                f.determinant()
+            );
+        }
+    }
+    match x
+        .iter()
+        .position(|v| !(v.x.abs() < 1e150 && v.y.abs() < 1e150))
+    {
+        Some(v) => format!(
+            "vertex {v} is at [{:e}, {:e}], beyond what double precision can square",
+            x[v].x, x[v].y
+        ),
+        None => "its terms overflow double precision".to_owned(),
+    }
 }
 
 /// The diagonal of the bounding box of `x`, m.
