@@ -45,7 +45,8 @@ fn size(mesh: &Mesh) -> f64 {
 /// Refuse a scene one of whose terms puts a force beyond [`MAX_FORCE_SCALE`] on the body:
 /// the weight (`gravity` times the body's mass), a traction over the body's size, a Young's
 /// modulus over the body's size (the force of a unit strain), and the barrier's force at half
-/// its activation distance (`contact.barrier_stiffness d_hat^3`).
+/// its activation distance (`contact.barrier_stiffness d_hat^3`); or a kinematic obstacle
+/// whose window moves it farther than [`MAX_FORCE_SCALE`] metres during the run.
 pub fn check_scales<E: fem_core::energy::Energy>(
     scene: &LoadedScene,
     model: &Model<E>,
@@ -87,6 +88,35 @@ pub fn check_scales<E: fem_core::energy::Energy>(
             let value = format!("[{}, {}]", sci(t.traction[0]), sci(t.traction[1]));
             let what = "the traction over the body's size";
             return refuse(&format!("traction.{k}.traction"), value, what, f);
+        }
+    }
+    // A kinematic obstacle's travel in each window over the run: its coordinates must stay
+    // squarable (the barrier's distances, the tether's force).
+    let horizon = s.solver.dt * s.solver.planned_steps() as f64;
+    for (o, ob) in s.obstacles.iter().enumerate() {
+        let windows = (ob
+            .velocity
+            .map(|v| (String::new(), v, ob.start.unwrap_or(0.0), ob.end)))
+        .into_iter()
+        .chain(
+            ob.moves
+                .iter()
+                .enumerate()
+                .map(|(m, mv)| (format!(".moves.{m}"), mv.velocity, mv.start, mv.end)),
+        );
+        for (at, v, start, end) in windows {
+            let span = (end.unwrap_or(f64::INFINITY).min(horizon) - start).max(0.0);
+            let travel = v[0].hypot(v[1]) * span;
+            if travel > MAX_FORCE_SCALE {
+                return Err(scene.error(
+                    &format!("obstacles.{o}{at}.velocity"),
+                    format!("[{}, {}]", sci(v[0]), sci(v[1])),
+                    &format!(
+                        "moves the obstacle {travel:.3e} m during the run, beyond {} m: its coordinates could not be squared in double precision",
+                        sci(MAX_FORCE_SCALE)
+                    ),
+                ));
+            }
         }
     }
     if s.ground.is_some() || !s.obstacles.is_empty() {

@@ -251,3 +251,21 @@ fn a_pin_dragged_through_the_ground_names_the_vertex_and_the_ground() {
     assert!(e.contains("where the contact barrier is infinite"), "{e}");
     assert_eq!(e.lines().count(), 1);
 }
+
+/// A kinematic obstacle whose move would carry it beyond squarable coordinates is refused
+/// before the run, naming the move's velocity (it once ended in "the potential is not finite
+/// at the starting positions" at the step the move began).
+#[test]
+fn an_obstacle_move_beyond_double_precision_is_refused_naming_its_velocity() {
+    let set = ["obstacles.0.moves.0.velocity=[0.0, -1e300]".to_owned()];
+    let e = fem_scene::cases::load_case("lower-leg", &set)
+        .and_then(|s| run(&s, &mut RunEnv::default()))
+        .map(|_| ())
+        .expect_err("refused");
+    let e = e.to_string();
+    assert!(
+        e.contains("obstacles.0.moves.0.velocity = [0, -1e300]: moves the obstacle"),
+        "{e}"
+    );
+    assert_eq!(e.lines().count(), 1);
+}

@@ -1421,7 +1421,7 @@ pub(crate) fn force_scale(first: Real, load: &[Vec2], elastic: Real) -> Real {
 /// crossed (a vertex through the ground or an obstacle, where the barrier is infinite), else
 /// the first triangle inverted under an energy that forbids it, else the first vertex whose
 /// coordinates are not finite or so large that the terms overflow.
-fn start_cause<E: Energy>(
+pub(crate) fn start_cause<E: Energy>(
     p: &Potential<'_, E>,
     x: &[Vec2],
     contact: Option<&BarrierContact>,

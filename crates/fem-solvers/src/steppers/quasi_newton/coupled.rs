@@ -734,10 +734,11 @@ impl QuasiNewtonStepper {
         }
         if !phi.is_finite() {
             *cp.newton.rigid() = rigid;
+            let cause = crate::optim::newton::start_cause(&potential, x, cp.contact.as_ref());
             return Err(SolverError::invalid(
                 "quasi-newton.initial_guess",
                 phi,
-                "the potential is not finite at the starting positions",
+                format!("the potential is not finite at the starting positions: {cause}"),
             ));
         }
         let (n, n_c) = (cp.n, cp.n_c);
