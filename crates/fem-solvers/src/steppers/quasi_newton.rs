@@ -600,14 +600,7 @@ impl Stepper for QuasiNewtonStepper {
             .sqrt();
         let mut gnorm = dot(&self.g, &self.g).sqrt();
         let scale = force_scale(gnorm, &self.load, elastic);
-        if !(gnorm.is_finite() && scale.is_finite()) {
-            return Err(SolverError::invalid(
-                "quasi-newton.forces",
-                fem_core::math::readable(gnorm.max(scale)),
-                "the forces at the starting positions overflow double precision \
-                 (a load, a modulus, a spring or a barrier stiffness too large)",
-            ));
-        }
+        overflowing_start(gnorm, scale)?;
         // Whether any trial of the step had a finite potential, and whether any was taken.
         let (mut finite_trial, mut moved) = (false, false);
         report.force_scale = scale;
@@ -672,29 +665,9 @@ impl Stepper for QuasiNewtonStepper {
         if gnorm <= self.params.tolerance * scale {
             report.converged = true;
         }
-        // A step that took no trial, from a start that is the current state (the prediction
-        // was not finite) or with every trial's potential infinite, leaves the body where it is
-        // under a load it did not resist: no step of the problem posed, unless the smallest
-        // trial inverts an element under an energy that forbids it within the body's size of
-        // the start (a stall of the fixed budget, reported by its residual).
-        let stalled = !moved && (report.fallback_guess || !finite_trial) && !report.converged && {
-            let reach = (self.x.iter().zip(self.trial.iter()))
-                .map(|(a, b)| (a - b).norm())
-                .fold(0.0, Real::max);
-            let size = crate::optim::newton::body_size(&self.x);
-            !(self.forbids_inversion
-                && reach <= size
-                && inversion(&self.els, &self.trial).inverted > 0)
-        };
-        if stalled {
-            return Err(SolverError::BeyondPrecision {
-                prefix: "quasi-newton",
-                detail: format!(
-                    "the step did not move the body: no trial along the search direction has \
-                     a finite, lower potential (halved {} times; residual {gnorm:.3e} N)",
-                    self.params.max_halvings
-                ),
-            });
+        if !moved && (report.fallback_guess || !finite_trial) && !report.converged {
+            let (halvings, forbids) = (self.params.max_halvings, self.forbids_inversion);
+            stalled(&self.x, &self.trial, &self.els, forbids, halvings, gnorm)?;
         }
         let inv = commit_positions(
             model,
@@ -760,4 +733,47 @@ impl Solver for QuasiNewtonStepper {
     fn integrator_mut(p: &mut QuasiNewtonParams) -> Option<&mut Integrator> {
         Some(&mut p.integrator)
     }
+}
+
+/// The start of a step whose gradient or force scale overflowed: an error (it would read as
+/// anything from converged to blown up).
+pub(super) fn overflowing_start(gnorm: Real, scale: Real) -> Result<(), SolverError> {
+    if gnorm.is_finite() && scale.is_finite() {
+        return Ok(());
+    }
+    Err(SolverError::invalid(
+        "quasi-newton.forces",
+        fem_core::math::readable(gnorm.max(scale)),
+        "the forces at the starting positions overflow double precision \
+         (a load, a modulus, a spring or a barrier stiffness too large)",
+    ))
+}
+
+/// A step that took no trial, from a start that is the current state (the prediction was not
+/// finite) or with every trial's potential infinite, leaves the body at `x` under a load it
+/// did not resist: no step of the problem posed, so an error, unless the smallest trial
+/// (`trial`) inverts an element under an energy that forbids it within the body's size of
+/// the start (a stall of the fixed budget, reported by its residual).
+pub(super) fn stalled(
+    x: &[Vec2],
+    trial: &[Vec2],
+    els: &[PackedElement],
+    forbids_inversion: bool,
+    max_halvings: usize,
+    gnorm: Real,
+) -> Result<(), SolverError> {
+    let reach = (x.iter().zip(trial))
+        .map(|(a, b)| (a - b).norm())
+        .fold(0.0, Real::max);
+    let size = crate::optim::newton::body_size(x);
+    if forbids_inversion && reach <= size && inversion(els, trial).inverted > 0 {
+        return Ok(());
+    }
+    Err(SolverError::BeyondPrecision {
+        prefix: "quasi-newton",
+        detail: format!(
+            "the step did not move the body: no trial along the search direction has a \
+             finite, lower potential (halved {max_halvings} times; residual {gnorm:.3e} N)"
+        ),
+    })
 }

@@ -31,7 +31,9 @@ use fem_core::assembly::Scratch;
 use fem_core::energy::Energy;
 use fem_core::math::{Real, Vec2, sin_cos};
 
-use super::{QuasiNewtonParams, QuasiNewtonReport, QuasiNewtonStepper, dot};
+use super::{
+    QuasiNewtonParams, QuasiNewtonReport, QuasiNewtonStepper, dot, overflowing_start, stalled,
+};
 use crate::contact::Contact;
 use crate::contact::barrier::{BarrierContact, end_poses, step_targets};
 use crate::error::SolverError;
@@ -758,14 +760,9 @@ impl QuasiNewtonStepper {
             .sum::<Real>()
             .sqrt();
         let scale = force_scale(own, load, cp.newton.elastic_force());
-        if !(gnorm.is_finite() && scale.is_finite()) {
+        if let Err(e) = overflowing_start(gnorm, scale) {
             *cp.newton.rigid() = rigid;
-            return Err(SolverError::invalid(
-                "quasi-newton.forces",
-                fem_core::math::readable(gnorm.max(scale)),
-                "the forces at the starting positions overflow double precision \
-                 (a load, a modulus, a spring or a barrier stiffness too large)",
-            ));
+            return Err(e);
         }
         // Whether any trial of the step had a finite potential, and whether any was taken.
         let (mut finite_trial, mut moved) = (false, false);
@@ -906,28 +903,12 @@ impl QuasiNewtonStepper {
         if gnorm <= params.tolerance * scale {
             report.converged = true;
         }
-        // A step that took no trial, from a start that is the current state (the prediction
-        // was not finite) or with every trial's potential infinite, leaves the body where it is
-        // under a load it did not resist: no step of the problem posed, unless the smallest
-        // trial inverts an element under an energy that forbids it within the body's size of
-        // the start (a stall of the fixed budget, reported by its residual).
-        let stalled = !moved && (report.fallback_guess || !finite_trial) && !report.converged && {
-            let reach = (x.iter().zip(trial.iter()))
-                .map(|(a, b)| (a - b).norm())
-                .fold(0.0, Real::max);
-            let size = crate::optim::newton::body_size(x);
-            !(*forbids_inversion && reach <= size && inversion(els, trial).inverted > 0)
-        };
-        if stalled {
-            *cp.newton.rigid() = rigid;
-            return Err(SolverError::BeyondPrecision {
-                prefix: "quasi-newton",
-                detail: format!(
-                    "the step did not move the body: no trial along the search direction has \
-                     a finite, lower potential (halved {} times; residual {gnorm:.3e} N)",
-                    params.max_halvings
-                ),
-            });
+        if !moved && (report.fallback_guess || !finite_trial) && !report.converged {
+            let halvings = params.max_halvings;
+            if let Err(e) = stalled(x, trial, els, *forbids_inversion, halvings, gnorm) {
+                *cp.newton.rigid() = rigid;
+                return Err(e);
+            }
         }
         *cp.newton.rigid() = rigid;
         // The bodies' new poses and velocities, as implicit Euler's.
