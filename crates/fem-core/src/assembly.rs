@@ -19,6 +19,7 @@ use crate::element::Tri3;
 use crate::energy::{Energy, EnergyOf};
 use crate::math::{Mat2, Mat6, Real, Vec2};
 use crate::mesh::Mesh;
+use crate::nodal_pressure::{self, NodalPattern, PressureFields};
 use crate::partition::{ELEMENT_CHUNK, Target, for_each_chunk};
 
 /// What one assembly pass saw, for step reports and inversion checks.
@@ -31,18 +32,18 @@ pub struct AssemblyReport {
 }
 
 impl AssemblyReport {
-    const EMPTY: AssemblyReport = AssemblyReport {
+    pub(crate) const EMPTY: AssemblyReport = AssemblyReport {
         min_det_f: Real::INFINITY,
         inverted: 0,
     };
 
     #[inline]
-    fn add(&mut self, j: Real) {
+    pub(crate) fn add(&mut self, j: Real) {
         self.min_det_f = self.min_det_f.min(j);
         self.inverted += usize::from(j <= 0.0);
     }
 
-    fn merge(a: Self, b: Self) -> Self {
+    pub(crate) fn merge(a: Self, b: Self) -> Self {
         AssemblyReport {
             min_det_f: a.min_det_f.min(b.min_det_f),
             inverted: a.inverted + b.inverted,
@@ -55,14 +56,22 @@ impl AssemblyReport {
 #[derive(Clone, Debug, Default)]
 pub struct Scratch {
     slots: Vec<Vec2>,
-    element_energies: Vec<Real>,
-    element_stiffness: Vec<Mat6>,
+    pub(crate) element_energies: Vec<Real>,
+    pub(crate) element_stiffness: Vec<Mat6>,
+    /// The averaged nodal pressure triangle's fields ([`crate::nodal_pressure`]).
+    pub(crate) pressure: PressureFields,
 }
 
 impl Scratch {
     /// Empty buffers.
     pub fn new() -> Self {
         Self::default()
+    }
+
+    /// The averaged nodal pressure fields of the last pass that evaluated them (forces,
+    /// energy or stiffness of an [`EnergyOf`] with [`EnergyOf::nodal_pressure`]).
+    pub fn pressure(&self) -> &PressureFields {
+        &self.pressure
     }
 }
 
@@ -110,6 +119,9 @@ pub fn populate_forces_serial<M: EnergyOf>(
     f: &mut [Vec2],
 ) -> AssemblyReport {
     check_len(mesh, x, "forces", f.len());
+    if let Some(np) = energy.nodal_pressure() {
+        return nodal_pressure::populate_forces(np, mesh, energy, x, f, &mut Scratch::new());
+    }
     f.fill(Vec2::zeros());
     let mut report = AssemblyReport::EMPTY;
     for (t, (tri, el)) in mesh.triangles().iter().zip(mesh.elements()).enumerate() {
@@ -130,6 +142,10 @@ pub fn populate_forces<M: EnergyOf>(
     f: &mut [Vec2],
     scratch: &mut Scratch,
 ) -> AssemblyReport {
+    if let Some(np) = energy.nodal_pressure() {
+        check_len(mesh, x, "forces", f.len());
+        return nodal_pressure::populate_forces(np, mesh, energy, x, f, scratch);
+    }
     if crate::par::current_num_threads() == 1 {
         return populate_forces_serial(mesh, energy, x, f);
     }
@@ -168,6 +184,9 @@ pub fn populate_forces<M: EnergyOf>(
 /// Total elastic energy `sum_e a_e psi(F_e)` (J per unit thickness), summed in triangle order.
 pub fn elastic_energy_serial<M: EnergyOf>(mesh: &Mesh, energy: &M, x: &[Vec2]) -> Real {
     check_len(mesh, x, "positions", x.len());
+    if let Some(np) = energy.nodal_pressure() {
+        return nodal_pressure::elastic_energy(np, mesh, energy, x, &mut Scratch::new());
+    }
     let mut total = 0.0;
     for (t, el) in mesh.elements().iter().enumerate() {
         total += el.area
@@ -187,6 +206,9 @@ pub fn elastic_energy<M: EnergyOf>(
     scratch: &mut Scratch,
 ) -> Real {
     check_len(mesh, x, "positions", x.len());
+    if let Some(np) = energy.nodal_pressure() {
+        return nodal_pressure::elastic_energy(np, mesh, energy, x, scratch);
+    }
     let buf = &mut scratch.element_energies;
     buf.resize(mesh.n_triangles(), 0.0);
     buf.par_chunks_mut(ELEMENT_CHUNK)
@@ -261,7 +283,9 @@ pub struct Stiffness {
     /// For each triangle and each of its 3x3 vertex pairs `(a, b)` (index `3a + b`), the offset
     /// of the 2x2 block's first column within rows `2 v_a` and `2 v_a + 1` (both rows share
     /// one column pattern).
-    block_offsets: Vec<[u32; 9]>,
+    pub(crate) block_offsets: Vec<[u32; 9]>,
+    /// The nodal terms' patches of the averaged nodal pressure triangle, when built for one.
+    pub(crate) nodal: Option<NodalPattern>,
 }
 
 impl Stiffness {
@@ -280,7 +304,32 @@ impl Stiffness {
             list.dedup();
             neighbours.push(list);
         }
-        let n = 2 * nv;
+        Self::from_neighbours(mesh, neighbours)
+    }
+
+    /// The pattern for the energy `energy` on `mesh`: [`Stiffness::new`], or
+    /// [`Stiffness::with_nodal_pressure`] when the energy has the averaged nodal pressure
+    /// triangle.
+    pub fn for_energy<M: EnergyOf>(mesh: &Mesh, energy: &M) -> Self {
+        match energy.nodal_pressure() {
+            Some(np) => Self::with_nodal_pressure(mesh, np),
+            None => Self::new(mesh),
+        }
+    }
+
+    /// The wider pattern of the averaged nodal pressure triangle ([`crate::nodal_pressure`]):
+    /// every vertex pair that shares a node's patch (the triangles around a vertex of one
+    /// region), which includes every pair that shares a triangle.
+    pub fn with_nodal_pressure(mesh: &Mesh, np: &nodal_pressure::NodalPressure) -> Self {
+        let neighbours = np.stencil(mesh);
+        let nodal = NodalPattern::new(np, mesh, &neighbours);
+        let mut k = Self::from_neighbours(mesh, neighbours);
+        k.nodal = Some(nodal);
+        k
+    }
+
+    fn from_neighbours(mesh: &Mesh, neighbours: Vec<Vec<u32>>) -> Self {
+        let n = 2 * mesh.n_vertices();
         let mut row_offsets = Vec::with_capacity(n + 1);
         row_offsets.push(0);
         let mut col_indices = Vec::new();
@@ -319,11 +368,12 @@ impl Stiffness {
                 values: vec![0.0; nnz],
             },
             block_offsets,
+            nodal: None,
         }
     }
 
     #[inline]
-    fn add_block(&mut self, tri: &[u32; 3], offs: &[u32; 9], ke: &Mat6) {
+    pub(crate) fn add_block(&mut self, tri: &[u32; 3], offs: &[u32; 9], ke: &Mat6) {
         let m = &mut self.matrix;
         for a in 0..3 {
             for i in 0..2 {
@@ -363,6 +413,17 @@ pub fn populate_stiffness_serial<M: EnergyOf>(
     k: &mut Stiffness,
 ) -> AssemblyReport {
     check_len(mesh, x, "stiffness", k.matrix.n / 2);
+    if let Some(np) = energy.nodal_pressure() {
+        return nodal_pressure::populate_stiffness(
+            np,
+            mesh,
+            energy,
+            x,
+            tangent,
+            k,
+            &mut Scratch::new(),
+        );
+    }
     k.matrix.values.fill(0.0);
     let mut report = AssemblyReport::EMPTY;
     for (t, tri) in mesh.triangles().iter().enumerate() {
@@ -389,6 +450,10 @@ pub fn populate_stiffness<M: EnergyOf>(
     k: &mut Stiffness,
     scratch: &mut Scratch,
 ) -> AssemblyReport {
+    if let Some(np) = energy.nodal_pressure() {
+        check_len(mesh, x, "stiffness", k.matrix.n / 2);
+        return nodal_pressure::populate_stiffness(np, mesh, energy, x, tangent, k, scratch);
+    }
     if crate::par::current_num_threads() == 1 {
         return populate_stiffness_serial(mesh, energy, x, tangent, k);
     }

@@ -54,6 +54,7 @@ pub mod fd;
 pub mod material;
 pub mod math;
 pub mod mesh;
+pub mod nodal_pressure;
 mod overlap;
 pub mod par;
 pub mod partition;

@@ -10,6 +10,12 @@
 //!   1.2 %, StVK by 3.7 %), then the full 3D formula
 //!   `sqrt(((sxx - syy)^2 + (syy - szz)^2 + (szz - sxx)^2) / 2 + 3 sxy^2)`.
 //!
+//! With the averaged nodal pressure triangle ([`crate::nodal_pressure`]) each element's normal
+//! stresses (in plane, and out of plane in plane strain) are shifted by its correction
+//! `p_e - U'(theta_e)`: the element's hydrostatic stress is the average of its nodes'
+//! pressures. The von Mises stress of plane strain does not see a shift of all three normal
+//! stresses; the formulation changes it through the displacements it no longer locks.
+//!
 //! For an inverted element (`J < 0`) `sigma` is the formula's value; at `J = 0`, and for energies
 //! undefined at `J <= 0` (Neo-Hookean), it is not finite. Vertex averages skip non-finite
 //! element values.
@@ -143,11 +149,22 @@ pub fn populate_element_stress<M: EnergyOf>(
     out: &mut Vec<ElementStress>,
 ) {
     out.clear();
+    // The averaged nodal pressure triangle shifts each element's normal stresses by its
+    // correction (the nodal pressure replaces the element's own volumetric stress).
+    let shift = energy
+        .nodal_pressure()
+        .map(|np| crate::nodal_pressure::stress_correction(np, mesh, energy, x));
     out.extend(mesh.elements().iter().enumerate().map(|(t, el)| {
         let f = el.deformation_gradient(mesh.gather(t, x));
         let energy = energy.energy_of(t);
-        let sigma = energy.cauchy(&f);
-        let sigma_zz = formula.sigma_zz(energy, &f);
+        let mut sigma = energy.cauchy(&f);
+        let mut sigma_zz = formula.sigma_zz(energy, &f);
+        if let Some(shift) = &shift {
+            sigma += Mat2::identity() * shift[t];
+            if formula == VonMisesFormula::PlaneStrain {
+                sigma_zz += shift[t];
+            }
+        }
         ElementStress {
             cauchy: sigma,
             sigma_zz,

@@ -73,6 +73,11 @@ impl Energy for Corotational {
     /// `sigma_zz = lambda tr(R^T F - I) / J` (the 3D form with `F33 = 1` and the rotation
     /// `diag(R, 1)`: `P33 = 2 mu (1 - 1) + lambda tr(R^T F - I)`).
     #[inline]
+    /// `lambda/2 (J - 1)^2`: `lambda/2 tr(S - I)^2` to second order in the strain.
+    fn volumetric(&self) -> super::Volumetric {
+        super::Volumetric::quadratic(self.lambda, 1.0, super::VolumeMeasure::Determinant)
+    }
+
     fn cauchy_zz(&self, f: &Mat2) -> Real {
         let r = Polar2::new(f).rotation();
         let t = r[(0, 0)] * (f[(0, 0)] + f[(1, 1)]) + r[(1, 0)] * (f[(1, 0)] - f[(0, 1)]) - 2.0;

@@ -70,6 +70,11 @@ impl Energy for Linear {
 
     /// The small-strain `sigma_zz = lambda tr(eps)` (`eps_zz = 0`): no push-forward.
     #[inline]
+    /// `lambda/2 tr(eps)^2` with `theta = 1 + tr(eps)`, the energy's own volumetric term.
+    fn volumetric(&self) -> super::Volumetric {
+        super::Volumetric::quadratic(self.lambda, 1.0, super::VolumeMeasure::Trace)
+    }
+
     fn cauchy_zz(&self, f: &Mat2) -> Real {
         self.lambda * (sym(f) - Mat2::identity()).trace()
     }

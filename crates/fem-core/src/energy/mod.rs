@@ -20,6 +20,7 @@ mod neo_hookean;
 mod regions;
 mod stable_neo_hookean;
 mod stvk;
+mod volumetric;
 
 use std::fmt;
 use std::str::FromStr;
@@ -30,6 +31,7 @@ pub use neo_hookean::NeoHookean;
 pub use regions::{ElementEnergies, EnergyOf};
 pub use stable_neo_hookean::StableNeoHookean;
 pub use stvk::Stvk;
+pub use volumetric::{VolumeMeasure, Volumetric};
 
 use nalgebra::SymmetricEigen;
 
@@ -74,6 +76,14 @@ pub trait Energy: Send + Sync + Clone + fmt::Debug {
     /// small-strain estimate `nu (sigma_xx + sigma_yy)` holds only for linear elasticity. For the
     /// small-strain energy (`linear`) it is the small-strain stress `P33` itself.
     fn cauchy_zz(&self, f: &Mat2) -> Real;
+
+    /// The energy's **volumetric part** `U(theta)`: the term of `psi` that the first Lamé
+    /// parameter scales, as a function of one volume measure `theta` (`J = det F`, or
+    /// `1 + tr(eps)` for the small-strain energy). The averaged nodal pressure triangle
+    /// ([`crate::nodal_pressure`]) evaluates `psi - U(theta_e)` on each element and `U` on the
+    /// nodal average of `theta`; the identity `psi = (psi - U) + U` makes the two formulations
+    /// agree exactly under uniform deformation.
+    fn volumetric(&self) -> Volumetric;
 
     /// The in-plane Cauchy stress, Pa: `P F^T / J` by default; the small-strain energy
     /// (`linear`) overrides it with its own stress `P` (it has no pushed-forward stress).
@@ -438,6 +448,9 @@ impl Energy for AnyEnergy {
     }
     fn cauchy_zz(&self, f: &Mat2) -> Real {
         dispatch_energy!(self, e => e.cauchy_zz(f))
+    }
+    fn volumetric(&self) -> Volumetric {
+        dispatch_energy!(self, e => e.volumetric())
     }
     fn cauchy(&self, f: &Mat2) -> Mat2 {
         dispatch_energy!(self, e => e.cauchy(f))

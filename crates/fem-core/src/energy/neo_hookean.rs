@@ -122,6 +122,13 @@ impl Energy for NeoHookean {
     /// `sigma_zz = lambda log J / J` (the 3D form with `F33 = 1`: `P33 = lambda log J`);
     /// not finite for `J <= 0`.
     #[inline]
+    /// `lambda/2 (log J)^2`, the energy's own volumetric term.
+    fn volumetric(&self) -> super::Volumetric {
+        super::Volumetric::LogSquared {
+            lambda: self.lambda,
+        }
+    }
+
     fn cauchy_zz(&self, f: &Mat2) -> Real {
         let j = f.determinant();
         if j <= 0.0 {

@@ -6,7 +6,11 @@
 //! [`ElementEnergies`] (one energy per region, a region tag per element). Code written against
 //! `EnergyOf` therefore runs unchanged on a homogeneous body, with no lookup at all.
 
+use std::sync::Arc;
+
 use super::{Energy, EnergyError};
+use crate::mesh::Mesh;
+use crate::nodal_pressure::NodalPressure;
 
 /// The energy of every element of a mesh.
 pub trait EnergyOf: Send + Sync {
@@ -15,6 +19,12 @@ pub trait EnergyOf: Send + Sync {
 
     /// The energy of element (triangle) `t`.
     fn energy_of(&self, t: usize) -> &Self::Energy;
+
+    /// The nodes of the averaged nodal pressure triangle ([`crate::nodal_pressure`]) when the
+    /// body uses it; `None` (the default): plain linear triangles.
+    fn nodal_pressure(&self) -> Option<&NodalPressure> {
+        None
+    }
 }
 
 impl<E: Energy> EnergyOf for E {
@@ -35,6 +45,8 @@ pub struct ElementEnergies<E> {
     energies: Vec<E>,
     /// One tag per element, or empty: every element is region 0.
     tags: Vec<u32>,
+    /// The averaged nodal pressure triangle's nodes, when the body uses it.
+    pressure: Option<Arc<NodalPressure>>,
 }
 
 impl<E: Energy> ElementEnergies<E> {
@@ -43,6 +55,7 @@ impl<E: Energy> ElementEnergies<E> {
         Self {
             energies: vec![energy],
             tags: Vec::new(),
+            pressure: None,
         }
     }
 
@@ -70,7 +83,11 @@ impl<E: Energy> ElementEnergies<E> {
                 ),
             });
         }
-        Ok(Self { energies, tags })
+        Ok(Self {
+            energies,
+            tags,
+            pressure: None,
+        })
     }
 
     /// An error message when the tags do not cover `n_triangles` elements (none when there
@@ -84,6 +101,26 @@ impl<E: Energy> ElementEnergies<E> {
                 self.tags.len()
             ))
         }
+    }
+
+    /// The same energies with the averaged nodal pressure triangle on `mesh` (the mesh whose
+    /// triangles these energies' tags describe): a locking-free formulation for nearly
+    /// incompressible bodies ([`crate::nodal_pressure`]). Errors when the tags do not cover the
+    /// mesh.
+    pub fn with_nodal_pressure(mut self, mesh: &Mesh) -> Result<Self, EnergyError> {
+        self.check_len(mesh.n_triangles())
+            .map_err(|message| EnergyError::Parameters {
+                energy: self.base().name(),
+                message,
+            })?;
+        self.pressure = Some(Arc::new(NodalPressure::new(mesh, &self.tags)));
+        Ok(self)
+    }
+
+    /// The same energies on plain linear triangles.
+    pub fn without_nodal_pressure(mut self) -> Self {
+        self.pressure = None;
+        self
     }
 
     /// The base energy (region 0).
@@ -128,6 +165,10 @@ impl<E: Energy> EnergyOf for ElementEnergies<E> {
     #[inline(always)]
     fn energy_of(&self, t: usize) -> &E {
         &self.energies[self.tag(t) as usize]
+    }
+
+    fn nodal_pressure(&self) -> Option<&NodalPressure> {
+        self.pressure.as_deref()
     }
 }
 

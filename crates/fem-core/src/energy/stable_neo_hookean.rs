@@ -92,6 +92,11 @@ impl Energy for StableNeoHookean {
     /// `sigma_zz = (mu' (1 - 1/(I_C + 1)) + lambda' (J - alpha) J) / J`: `P33` of the 3D form
     /// of the module docs at `F33 = 1`.
     #[inline]
+    /// `lambda'/2 (J - alpha)^2`, the energy's own volumetric term.
+    fn volumetric(&self) -> super::Volumetric {
+        super::Volumetric::quadratic(self.lambda, self.alpha, super::VolumeMeasure::Determinant)
+    }
+
     fn cauchy_zz(&self, f: &Mat2) -> Real {
         let ic = f.norm_squared();
         let j = f.determinant();

@@ -77,6 +77,11 @@ impl Energy for Stvk {
     /// `sigma_zz = lambda tr(E) / J` (the 3D form with `F33 = 1`: `E33 = 0`, `S33 = lambda
     /// tr(E)`, `P33 = S33`).
     #[inline]
+    /// `lambda/2 (J - 1)^2`: `lambda/2 tr(E)^2` to second order in the strain.
+    fn volumetric(&self) -> super::Volumetric {
+        super::Volumetric::quadratic(self.lambda, 1.0, super::VolumeMeasure::Determinant)
+    }
+
     fn cauchy_zz(&self, f: &Mat2) -> Real {
         self.lambda * Self::green(f).trace() / f.determinant()
     }
