@@ -12,7 +12,7 @@ use fem_core::math::{Real, Vec2, readable};
 use fem_core::mesh::Mesh;
 use fem_core::stress::VonMisesFormula;
 use fem_core::structured::{NodeOrder, RectangleParams, rectangle};
-use fem_core::{Lame, Material};
+use fem_core::{Lame, Material, PlaneModel};
 use fem_mesh::Mesh2;
 use fem_mesh::camera::{Camera, Projection};
 use fem_mesh::pipeline::{PipelineParams, mesh_surface};
@@ -23,7 +23,7 @@ use fem_solvers::{
 };
 
 use crate::error::SceneError;
-use crate::scene::{LoadedScene, MeshKind, MeshSpec, MotionName, ViewName};
+use crate::scene::{Formulation, LoadedScene, MeshKind, MeshSpec, MotionName, ViewName};
 
 /// Where the bytes of the files a scene names (`mesh.path`: a mesh JSON or a 3D model) come
 /// from: the file system next to the scene file for the command line, memory in a browser.
@@ -639,6 +639,9 @@ fn build_unloaded_model<E: Energy>(
         }
         model
     };
+    if averaged_pressure(scene) {
+        model.set_averaged_pressure(true).map_err(&err)?;
+    }
     for (i, r) in s.pinned.iter().enumerate() {
         let region = Region::in_box(v2(r.min), v2(r.max));
         if region
@@ -925,5 +928,28 @@ fn kilograms(m: f64) -> String {
         s.trim_end_matches('0').trim_end_matches('.').to_owned()
     } else {
         format!("{m:.4e}")
+    }
+}
+
+/// Whether the scene's elements are averaged nodal pressure triangles: `material.formulation`
+/// resolved (`auto`: plane strain, an elastic material with `nu >= Formulation::AUTO_POISSON`
+/// and a solver that supports it).
+pub fn averaged_pressure(scene: &LoadedScene) -> bool {
+    let s = &scene.scene;
+    match s.material.formulation {
+        Formulation::Standard => false,
+        Formulation::AveragedPressure => true,
+        Formulation::Auto => {
+            let nearly_incompressible = std::iter::once(s.material.poisson_ratio)
+                .chain(
+                    (s.regions.iter())
+                        .filter(|r| !r.rigid)
+                        .map(|r| r.poisson_ratio.unwrap_or(s.material.poisson_ratio)),
+                )
+                .any(|nu| nu >= Formulation::AUTO_POISSON);
+            s.material.plane == PlaneModel::PlaneStrain
+                && nearly_incompressible
+                && s.solver.kind.capabilities().averaged_pressure
+        }
     }
 }

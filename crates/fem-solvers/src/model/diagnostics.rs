@@ -32,6 +32,8 @@ impl Energies {
 #[derive(Clone, Debug, Default)]
 pub struct EnergyScratch {
     element: Vec<Real>,
+    /// The averaged nodal pressure triangle's buffers.
+    core: fem_core::assembly::Scratch,
 }
 
 /// The energies of `state`. Element energies are evaluated on the current rayon pool and
@@ -73,12 +75,21 @@ pub fn energies<E: Energy>(
             gravitational -= mass * g.dot(&d);
         }
     }
-    let elastic = kernel::elastic_energy(
-        model.energies(),
-        &model.elements,
-        &state.x,
-        &mut scratch.element,
-    );
+    let elastic = if model.uses_averaged_pressure() {
+        fem_core::assembly::elastic_energy(
+            model.elastic_mesh(),
+            model.elastic_energies(),
+            &state.x,
+            &mut scratch.core,
+        )
+    } else {
+        kernel::elastic_energy(
+            model.energies(),
+            &model.elements,
+            &state.x,
+            &mut scratch.element,
+        )
+    };
     Energies {
         kinetic,
         elastic,

@@ -261,8 +261,13 @@ impl<E: Energy> Model<E> {
         let keep: Vec<bool> = rigid.iter().map(|r| !r).collect();
         let elastic_mesh = self.mesh.restricted(&keep);
         let elastic_tags: Vec<u32> = (0..n).filter(|&t| keep[t]).map(|t| tags[t]).collect();
-        let energies = ElementEnergies::new(self.energies.energies().to_vec(), elastic_tags)
+        let mut energies = ElementEnergies::new(self.energies.energies().to_vec(), elastic_tags)
             .map_err(|e| SolverError::invalid(field.clone(), true, e.to_string()))?;
+        if self.uses_averaged_pressure() {
+            energies = energies
+                .with_nodal_pressure(&elastic_mesh)
+                .map_err(|e| SolverError::invalid(field.clone(), true, e.to_string()))?;
+        }
         self.elements = pack(&elastic_mesh, energies.tags());
         self.blocks = pack_blocks(&self.elements);
         self.elastic = Some((elastic_mesh, energies));
@@ -270,6 +275,36 @@ impl<E: Energy> Model<E> {
         self.slave = slave;
         self.refresh_kinematics();
         Ok(self)
+    }
+
+    /// Use the averaged nodal pressure triangle (`on`), a locking-free formulation of the
+    /// linear triangle for nearly incompressible bodies ([`fem_core::nodal_pressure`]), or plain
+    /// linear triangles. The nodes are those of the elastic mesh (rigid regions' triangles are
+    /// not in it). Solvers that do not support it refuse the model when they are built (the
+    /// capability table's `averaged pressure` column). Changes the layout.
+    pub fn set_averaged_pressure(&mut self, on: bool) -> Result<&mut Self, SolverError> {
+        let apply = |e: ElementEnergies<E>, mesh: &Mesh| {
+            if on {
+                e.with_nodal_pressure(mesh).map_err(|e| {
+                    SolverError::invalid("formulation", "averaged-pressure", e.to_string())
+                })
+            } else {
+                Ok(e.without_nodal_pressure())
+            }
+        };
+        self.energies = apply(self.energies.clone(), &self.mesh)?;
+        if let Some((mesh, energies)) = self.elastic.take() {
+            let energies = apply(energies, &mesh)?;
+            self.elastic = Some((mesh, energies));
+        }
+        self.layout = fresh_layout();
+        Ok(self)
+    }
+
+    /// Whether the elements are averaged nodal pressure triangles
+    /// ([`Model::set_averaged_pressure`]).
+    pub fn uses_averaged_pressure(&self) -> bool {
+        self.energies.nodal_pressure().is_some()
     }
 
     /// Pin the vertices of `region` (zero velocity for the whole run).

@@ -41,6 +41,7 @@ use fem_core::assembly::{
 use fem_core::energy::{ElementEnergies, Energy, EnergyOf};
 use fem_core::math::{Real, Vec2};
 use fem_core::mesh::Mesh;
+use fem_core::nodal_pressure::NodalPressure;
 
 use crate::contact::barrier::{BarrierContact, Dof};
 use crate::error::{SolverError, check_at_most, check_count};
@@ -398,6 +399,7 @@ impl NewtonSolver {
     /// free rigid bodies, whose vertices must be in `kinematic`): see [`RigidUnknowns`].
     pub(crate) fn with_extra(
         mesh: &Mesh,
+        pressure: Option<&NodalPressure>,
         kinematic: &[usize],
         prefix: &'static str,
         n_extra: usize,
@@ -405,7 +407,11 @@ impl NewtonSolver {
         rigid: &[RigidBody],
     ) -> Result<Self, SolverError> {
         let self_prefix = prefix;
-        let stiffness = Stiffness::new(mesh);
+        // The averaged nodal pressure triangle couples every vertex of a node's patch.
+        let stiffness = match pressure {
+            Some(np) => Stiffness::with_nodal_pressure(mesh, np),
+            None => Stiffness::new(mesh),
+        };
         let n_contact = n_extra;
         let mut rigid = RigidUnknowns::new(mesh.n_vertices(), rigid);
         let n_extra = n_contact + 3 * rigid.bodies.len();

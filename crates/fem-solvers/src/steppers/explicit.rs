@@ -107,6 +107,8 @@ pub struct ExplicitStepper {
     check: TimeStepCheck,
     f: Vec<Vec2>,
     slots: Vec<Vec2>,
+    /// Buffers of the averaged nodal pressure triangle's force pass.
+    scratch: fem_core::assembly::Scratch,
     x_new: Vec<Vec2>,
     v_new: Vec<Vec2>,
     wrenches: Vec<Wrench>,
@@ -128,6 +130,7 @@ impl ExplicitStepper {
             check: model.check_time_step(params.dt),
             f: vec![Vec2::zeros(); n],
             slots: Vec::new(),
+            scratch: fem_core::assembly::Scratch::new(),
             x_new: vec![Vec2::zeros(); n],
             v_new: vec![Vec2::zeros(); n],
             wrenches: vec![Wrench::default(); model.obstacles().len()],
@@ -176,15 +179,30 @@ impl Stepper for ExplicitStepper {
             .resize(model.obstacles().len(), Wrench::default());
         let (dt, t) = (self.params.dt, state.t);
 
-        let inv = kernel::forces(
-            model.elastic_energies(),
-            &model.blocks,
-            model.elastic_mesh(),
-            &state.x,
-            &mut self.f,
-            &mut self.slots,
-            model.isa(),
-        );
+        let inv = if model.uses_averaged_pressure() {
+            // The averaged nodal pressure triangle: nodal volumes, then element forces.
+            let r = fem_core::assembly::populate_forces(
+                model.elastic_mesh(),
+                model.elastic_energies(),
+                &state.x,
+                &mut self.f,
+                &mut self.scratch,
+            );
+            kernel::Inversion {
+                min_det_f: r.min_det_f,
+                inverted: r.inverted,
+            }
+        } else {
+            kernel::forces(
+                model.elastic_energies(),
+                &model.blocks,
+                model.elastic_mesh(),
+                &state.x,
+                &mut self.f,
+                &mut self.slots,
+                model.isa(),
+            )
+        };
         for &(v, fe) in model.external_forces() {
             self.f[v as usize] += fe;
         }
@@ -302,6 +320,7 @@ impl Solver for ExplicitStepper {
         paper: true,
         contact: true,
         rigid_regions: true,
+        averaged_pressure: true,
         implicit: false,
         iterations: false,
         substeps: false,

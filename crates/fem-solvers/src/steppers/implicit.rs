@@ -34,6 +34,7 @@
 //! `tolerance`, `max_iterations`, `max_halvings`.
 
 use fem_core::energy::Energy;
+use fem_core::energy::EnergyOf as _;
 use fem_core::math::{Real, Vec2, exp};
 
 use super::{Stepper, check_step_inputs};
@@ -163,6 +164,7 @@ impl ImplicitStepper {
         };
         let solver = NewtonSolver::with_extra(
             model.elastic_mesh(),
+            model.elastic_energies().nodal_pressure(),
             &kinematic,
             "implicit",
             n_extra,
@@ -443,6 +445,7 @@ impl Solver for ImplicitStepper {
         paper: false,
         contact: true,
         rigid_regions: true,
+        averaged_pressure: true,
         implicit: true,
         iterations: false,
         substeps: false,

@@ -33,6 +33,7 @@
 //! `max_halvings`.
 
 use fem_core::energy::Energy;
+use fem_core::energy::EnergyOf as _;
 use fem_core::math::{Real, Vec2, exp};
 
 use super::{Stepper, check_step_inputs};
@@ -191,6 +192,7 @@ impl LinearImplicitStepper {
         };
         let solver = NewtonSolver::with_extra(
             model.elastic_mesh(),
+            model.elastic_energies().nodal_pressure(),
             &kinematic,
             Self::NAME,
             n_extra,
@@ -370,6 +372,7 @@ impl Solver for LinearImplicitStepper {
         paper: false,
         contact: true,
         rigid_regions: true,
+        averaged_pressure: true,
         implicit: true,
         iterations: false,
         substeps: false,

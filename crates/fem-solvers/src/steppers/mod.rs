@@ -110,3 +110,27 @@ pub(crate) fn refuse_free_rigid_bodies<E: Energy>(
         ),
     ))
 }
+
+/// Refuse a model of averaged nodal pressure triangles, for a solver that does not support
+/// them (`averaged_pressure: false` in its capabilities): one line naming the solver and the
+/// solvers that do.
+pub(crate) fn refuse_averaged_pressure<E: Energy>(
+    model: &Model<E>,
+    solver: &str,
+) -> Result<(), SolverError> {
+    if !model.uses_averaged_pressure() {
+        return Ok(());
+    }
+    let supported: Vec<&str> = (registry::SolverKind::ALL.iter())
+        .filter(|k| k.capabilities().averaged_pressure)
+        .map(|k| k.name())
+        .collect();
+    Err(SolverError::invalid(
+        "solver",
+        solver,
+        format!(
+            "does not support the averaged nodal pressure triangle (material.formulation = \"averaged-pressure\"): use {}, or material.formulation = \"standard\"",
+            supported.join(", ")
+        ),
+    ))
+}

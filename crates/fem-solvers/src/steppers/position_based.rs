@@ -1397,6 +1397,7 @@ const POSITION_BASED: Capabilities = Capabilities {
     paper: true,
     contact: true,
     rigid_regions: true,
+    averaged_pressure: false,
     implicit: false,
     iterations: true,
     substeps: true,

@@ -538,6 +538,7 @@ impl Solver for PdStepper {
         paper: false,
         contact: false,
         rigid_regions: false,
+        averaged_pressure: false,
         implicit: true,
         iterations: true,
         substeps: false,

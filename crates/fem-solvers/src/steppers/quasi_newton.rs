@@ -709,6 +709,7 @@ impl Solver for QuasiNewtonStepper {
         paper: false,
         contact: true,
         rigid_regions: true,
+        averaged_pressure: true,
         implicit: true,
         iterations: true,
         substeps: false,

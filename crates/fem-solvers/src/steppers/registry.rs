@@ -64,6 +64,10 @@ pub struct Capabilities {
     /// a model with a free rigid body when it is built (pinned and scheduled bodies are
     /// kinematic vertices to every solver).
     pub rigid_regions: bool,
+    /// Supports the averaged nodal pressure triangle ([`fem_core::nodal_pressure`],
+    /// [`Model::set_averaged_pressure`]); a solver without it refuses such a model when it is
+    /// built.
+    pub averaged_pressure: bool,
     /// Implicit in time.
     pub implicit: bool,
     /// Has an iteration-count parameter `iterations`.
@@ -258,6 +262,9 @@ macro_rules! registry {
                         if !<$ty as Solver>::CAPABILITIES.rigid_regions {
                             $crate::steppers::refuse_free_rigid_bodies(model, <$ty as Solver>::NAME)?;
                         }
+                        if !<$ty as Solver>::CAPABILITIES.averaged_pressure {
+                            $crate::steppers::refuse_averaged_pressure(model, <$ty as Solver>::NAME)?;
+                        }
                         AnyStepper::$variant(Box::new(<$ty as Solver>::build(model, p)?))
                     })+
                 })
@@ -407,19 +414,20 @@ impl<'de> serde::Deserialize<'de> for SolverKind {
 pub fn capability_table() -> String {
     let yes = |b: bool| if b { "yes" } else { "no" };
     let mut out = String::from(
-        "| solver | summary | paper | contact | rigid regions | implicit | iterations | substeps | factorisation | deterministic | clock | converges to |\n\
-         |---|---|---|---|---|---|---|---|---|---|---|---|\n",
+        "| solver | summary | paper | contact | rigid regions | averaged pressure | implicit | iterations | substeps | factorisation | deterministic | clock | converges to |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for kind in SolverKind::ALL {
         let c = kind.capabilities();
         let _ = writeln!(
             out,
-            "| `{}` | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            "| `{}` | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
             kind.name(),
             c.summary,
             yes(c.paper),
             yes(c.contact),
             yes(c.rigid_regions),
+            yes(c.averaged_pressure),
             yes(c.implicit),
             yes(c.iterations),
             yes(c.substeps),

@@ -72,6 +72,7 @@ impl Solver for TwoHalves {
         paper: false,
         contact: true,
         rigid_regions: false,
+        averaged_pressure: false,
         implicit: false,
         iterations: false,
         substeps: false,

@@ -32,6 +32,7 @@
 //! `tolerance`, `max_iterations`, `max_halvings`.
 
 use fem_core::energy::Energy;
+use fem_core::energy::EnergyOf as _;
 use fem_core::math::{Real, Vec2};
 
 use super::{Stepper, check_step_inputs};
@@ -186,6 +187,7 @@ impl StaticStepper {
         };
         let solver = NewtonSolver::with_extra(
             model.elastic_mesh(),
+            model.elastic_energies().nodal_pressure(),
             &kinematic,
             "static",
             n_extra,
@@ -490,6 +492,7 @@ impl Solver for StaticStepper {
         paper: false,
         contact: true,
         rigid_regions: true,
+        averaged_pressure: true,
         implicit: true,
         iterations: false,
         substeps: false,

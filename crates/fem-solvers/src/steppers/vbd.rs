@@ -1671,6 +1671,7 @@ impl Solver for VbdStepper {
         paper: false,
         contact: true,
         rigid_regions: true,
+        averaged_pressure: false,
         implicit: true,
         iterations: true,
         substeps: true,

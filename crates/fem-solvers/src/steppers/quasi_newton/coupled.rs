@@ -29,6 +29,7 @@
 
 use fem_core::assembly::Scratch;
 use fem_core::energy::Energy;
+use fem_core::energy::EnergyOf as _;
 use fem_core::math::{Real, Vec2, sin_cos};
 
 use super::{
@@ -422,6 +423,7 @@ impl Coupled {
         };
         let newton = NewtonSolver::with_extra(
             model.elastic_mesh(),
+            model.elastic_energies().nodal_pressure(),
             &kinematic,
             "quasi-newton",
             n_c,
