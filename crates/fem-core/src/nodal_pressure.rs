@@ -68,6 +68,8 @@ pub struct NodalPressure {
     entries: Vec<(u32, u8)>,
     /// `V_n`, m^2.
     volume: Vec<Real>,
+    /// Each entry's weight `(a_e / 3) / V_n` in its node's average.
+    weights: Vec<Real>,
 }
 
 impl NodalPressure {
@@ -102,12 +104,19 @@ impl NodalPressure {
                 volume.push(vol);
             }
         }
+        let mut weights = Vec::with_capacity(entries.len());
+        for n in 0..node_vertex.len() {
+            for &(t, _) in &entries[offsets[n] as usize..offsets[n + 1] as usize] {
+                weights.push(mesh.elements()[t as usize].area / 3.0 / volume[n]);
+            }
+        }
         NodalPressure {
             corner_node,
             node_vertex,
             offsets,
             entries,
             volume,
+            weights,
         }
     }
 
@@ -197,59 +206,112 @@ impl PressureFields {
         Self::default()
     }
 
-    /// Evaluate the fields of `np` on `mesh` at positions `x`.
+    /// Evaluate the fields of `np` on `mesh` at positions `x`: everything the forces, the
+    /// energy and the stiffness need.
     pub fn update<M: EnergyOf>(&mut self, np: &NodalPressure, mesh: &Mesh, energy: &M, x: &[Vec2]) {
+        self.evaluate(np, mesh, energy, x, true);
+    }
+
+    /// [`PressureFields::update`] without what only the stiffness needs (`dtheta/dF`,
+    /// `U''`): the corrections of an explicit force pass.
+    pub fn update_corrections<M: EnergyOf>(
+        &mut self,
+        np: &NodalPressure,
+        mesh: &Mesh,
+        energy: &M,
+        x: &[Vec2],
+    ) {
+        self.evaluate(np, mesh, energy, x, false);
+    }
+
+    fn evaluate<M: EnergyOf>(
+        &mut self,
+        np: &NodalPressure,
+        mesh: &Mesh,
+        energy: &M,
+        x: &[Vec2],
+        full: bool,
+    ) {
         let (ne, nn) = (mesh.n_triangles(), np.n_nodes());
         self.theta.resize(ne, 0.0);
-        self.dtheta.resize(ne, Mat2::zeros());
+        // `corr` holds `U'(theta_e)` until the last pass turns it into the correction.
         self.corr.resize(ne, 0.0);
-        self.d2u.resize(ne, 0.0);
         self.node_theta.resize(nn, 0.0);
         self.node_p.resize(nn, 0.0);
-        self.node_k.resize(nn, 0.0);
+        if full {
+            self.dtheta.resize(ne, Mat2::zeros());
+            self.d2u.resize(ne, 0.0);
+            self.node_k.resize(nn, 0.0);
+        }
         (self.theta.par_chunks_mut(ELEMENT_CHUNK))
-            .zip(self.dtheta.par_chunks_mut(ELEMENT_CHUNK))
+            .zip(self.corr.par_chunks_mut(ELEMENT_CHUNK))
             .enumerate()
-            .for_each(|(c, (theta, dtheta))| {
-                for (k, (th, dt)) in theta.iter_mut().zip(dtheta.iter_mut()).enumerate() {
+            .for_each(|(c, (theta, du))| {
+                for (k, (th, du)) in theta.iter_mut().zip(du.iter_mut()).enumerate() {
                     let t = c * ELEMENT_CHUNK + k;
                     let f = mesh.elements()[t].deformation_gradient(mesh.gather(t, x));
                     let vol = energy.energy_of(t).volumetric();
                     *th = vol.theta(&f);
-                    *dt = vol.dtheta(&f);
+                    *du = vol.du(*th);
                 }
             });
+        if full {
+            (self.dtheta.par_chunks_mut(ELEMENT_CHUNK))
+                .zip(self.d2u.par_chunks_mut(ELEMENT_CHUNK))
+                .zip(self.theta.par_chunks(ELEMENT_CHUNK))
+                .enumerate()
+                .for_each(|(c, ((dtheta, d2u), theta))| {
+                    for (k, ((dt, dd), th)) in
+                        dtheta.iter_mut().zip(d2u.iter_mut()).zip(theta).enumerate()
+                    {
+                        let t = c * ELEMENT_CHUNK + k;
+                        let f = mesh.elements()[t].deformation_gradient(mesh.gather(t, x));
+                        let vol = energy.energy_of(t).volumetric();
+                        *dt = vol.dtheta(&f);
+                        *dd = vol.d2u(*th);
+                    }
+                });
+        }
         let theta = &self.theta;
+        let node_k = &mut self.node_k;
         (self.node_theta.par_chunks_mut(NODE_CHUNK))
             .zip(self.node_p.par_chunks_mut(NODE_CHUNK))
-            .zip(self.node_k.par_chunks_mut(NODE_CHUNK))
             .enumerate()
-            .for_each(|(c, ((th, p), k))| {
+            .for_each(|(c, (th, p))| {
                 for i in 0..th.len() {
                     let n = c * NODE_CHUNK + i;
-                    let entries = np.entries(n);
-                    let mut s = 0.0;
-                    for &(t, _) in entries {
-                        s += mesh.elements()[t as usize].area / 3.0 * theta[t as usize];
+                    let range = np.offsets[n] as usize..np.offsets[n + 1] as usize;
+                    let mut tn = 0.0;
+                    for (&(t, _), w) in np.entries[range.clone()].iter().zip(&np.weights[range]) {
+                        tn += w * theta[t as usize];
                     }
-                    let tn = s / np.volume(n);
-                    let vol = energy.energy_of(entries[0].0 as usize).volumetric();
+                    let vol = energy.energy_of(np.entries(n)[0].0 as usize).volumetric();
                     th[i] = tn;
                     p[i] = vol.du(tn);
-                    k[i] = vol.d2u(tn);
                 }
             });
+        if full {
+            let node_theta = &self.node_theta;
+            node_k
+                .par_chunks_mut(NODE_CHUNK)
+                .enumerate()
+                .for_each(|(c, k)| {
+                    for (i, k) in k.iter_mut().enumerate() {
+                        let n = c * NODE_CHUNK + i;
+                        let vol = energy.energy_of(np.entries(n)[0].0 as usize).volumetric();
+                        *k = vol.d2u(node_theta[n]);
+                    }
+                });
+        }
         let node_p = &self.node_p;
-        (self.corr.par_chunks_mut(ELEMENT_CHUNK))
-            .zip(self.d2u.par_chunks_mut(ELEMENT_CHUNK))
+        self.corr
+            .par_chunks_mut(ELEMENT_CHUNK)
             .enumerate()
-            .for_each(|(c, (corr, d2u))| {
-                for (k, (co, dd)) in corr.iter_mut().zip(d2u.iter_mut()).enumerate() {
+            .for_each(|(c, corr)| {
+                for (k, co) in corr.iter_mut().enumerate() {
                     let t = c * ELEMENT_CHUNK + k;
                     let [a, b, d] = np.corner_node[t].map(|n| node_p[n as usize]);
-                    let vol = energy.energy_of(t).volumetric();
-                    *co = (a + b + d) / 3.0 - vol.du(theta[t]);
-                    *dd = vol.d2u(theta[t]);
+                    *co = (a + b + d) / 3.0 - *co;
                 }
             });
     }
@@ -285,7 +347,7 @@ impl PressureFields {
         &self.d2u
     }
 
-    /// `dtheta/dF` of each element.
+    /// `dtheta/dF` of each element (after [`PressureFields::update`]).
     pub fn dtheta(&self) -> &[Mat2] {
         &self.dtheta
     }
@@ -294,7 +356,7 @@ impl PressureFields {
     /// `P(F) + (p_e - U'(theta_e)) dtheta/dF`.
     #[inline]
     pub fn pk1<E: Energy>(&self, t: usize, energy: &E, f: &Mat2) -> Mat2 {
-        energy.pk1(f) + self.dtheta[t] * self.corr[t]
+        energy.pk1(f) + energy.volumetric().dtheta(f) * self.corr[t]
     }
 
     /// Element `t`'s `dP/dF` under the formulation at fixed nodal pressures (the element part
@@ -332,7 +394,7 @@ pub fn elastic_energy<M: EnergyOf>(
     scratch: &mut Scratch,
 ) -> Real {
     let fields = &mut scratch.pressure;
-    fields.update(np, mesh, energy, x);
+    fields.update_corrections(np, mesh, energy, x);
     let buf = &mut scratch.element_energies;
     buf.resize(mesh.n_triangles(), 0.0);
     let theta = &fields.theta;
@@ -376,7 +438,7 @@ pub fn populate_forces<M: EnergyOf>(
     scratch: &mut Scratch,
 ) -> AssemblyReport {
     let fields = &mut scratch.pressure;
-    fields.update(np, mesh, energy, x);
+    fields.update_corrections(np, mesh, energy, x);
     let mut forces = std::mem::take(&mut fields.element_forces);
     forces.resize(mesh.n_triangles(), [Vec2::zeros(); 3]);
     let fields_ref = &*fields;

@@ -29,6 +29,7 @@
 //! (`"symplectic"` | `"forward-euler"`).
 
 use fem_core::energy::Energy;
+use fem_core::energy::EnergyOf as _;
 use fem_core::math::{Real, Vec2, exp};
 use fem_core::par::prelude::*;
 use fem_core::simd::Isa;
@@ -107,8 +108,8 @@ pub struct ExplicitStepper {
     check: TimeStepCheck,
     f: Vec<Vec2>,
     slots: Vec<Vec2>,
-    /// Buffers of the averaged nodal pressure triangle's force pass.
-    scratch: fem_core::assembly::Scratch,
+    /// The averaged nodal pressure triangle's fields.
+    pressure: fem_core::nodal_pressure::PressureFields,
     x_new: Vec<Vec2>,
     v_new: Vec<Vec2>,
     wrenches: Vec<Wrench>,
@@ -130,7 +131,7 @@ impl ExplicitStepper {
             check: model.check_time_step(params.dt),
             f: vec![Vec2::zeros(); n],
             slots: Vec::new(),
-            scratch: fem_core::assembly::Scratch::new(),
+            pressure: fem_core::nodal_pressure::PressureFields::new(),
             x_new: vec![Vec2::zeros(); n],
             v_new: vec![Vec2::zeros(); n],
             wrenches: vec![Wrench::default(); model.obstacles().len()],
@@ -179,30 +180,28 @@ impl Stepper for ExplicitStepper {
             .resize(model.obstacles().len(), Wrench::default());
         let (dt, t) = (self.params.dt, state.t);
 
-        let inv = if model.uses_averaged_pressure() {
-            // The averaged nodal pressure triangle: nodal volumes, then element forces.
-            let r = fem_core::assembly::populate_forces(
-                model.elastic_mesh(),
-                model.elastic_energies(),
-                &state.x,
-                &mut self.f,
-                &mut self.scratch,
-            );
-            kernel::Inversion {
-                min_det_f: r.min_det_f,
-                inverted: r.inverted,
+        // The averaged nodal pressure triangle: its nodal pressures first, then each element's
+        // correction joins its stress in the batched kernel.
+        let energies = model.elastic_energies();
+        let corr = match energies.nodal_pressure() {
+            Some(np) => {
+                self.pressure
+                    .update_corrections(np, model.elastic_mesh(), energies, &state.x);
+                let measure = energies.base().volumetric().measure();
+                Some((self.pressure.correction(), measure))
             }
-        } else {
-            kernel::forces(
-                model.elastic_energies(),
-                &model.blocks,
-                model.elastic_mesh(),
-                &state.x,
-                &mut self.f,
-                &mut self.slots,
-                model.isa(),
-            )
+            None => None,
         };
+        let inv = kernel::forces(
+            energies,
+            &model.blocks,
+            model.elastic_mesh(),
+            &state.x,
+            &mut self.f,
+            &mut self.slots,
+            model.isa(),
+            corr,
+        );
         for &(v, fe) in model.external_forces() {
             self.f[v as usize] += fe;
         }
