@@ -856,7 +856,78 @@ impl<E: Energy> Model<E> {
             let top = SymmetricEigen::new(s).eigenvalues.max();
             lambda_max = lambda_max.max(top);
         }
+        if let Some(np) = self.elastic_energies().nodal_pressure() {
+            return self.averaged_pressure_frequency_bound(np, &area_around);
+        }
         lambda_max.sqrt()
+    }
+
+    /// [`Model::rest_frequency_bound`] of the averaged nodal pressure triangle: its rest
+    /// stiffness is the elements' deviatoric part `K_d` (the tangent less `U''(1) t t^T`) plus
+    /// each node's rank-one `U''(1) / V_n h_n h_n^T`, both positive semi-definite, so
+    /// `lambda_max(M^-1 K) <= lambda_max(M^-1 K_d) + lambda_max(M^-1 K_p)`. The first is bounded
+    /// element by element as above; the second node by node with each vertex's mass split
+    /// equally among the node patches it lies in: `max_n U''(1) / V_n sum_i |h_n,i|^2 / m_i,n`.
+    fn averaged_pressure_frequency_bound(
+        &self,
+        np: &fem_core::nodal_pressure::NodalPressure,
+        area_around: &[Real],
+    ) -> Real {
+        let mesh = self.elastic_mesh();
+        let energies = self.elastic_energies();
+        let dev: Vec<_> = (energies.energies().iter())
+            .map(|e| {
+                let vol = e.volumetric();
+                let t = fem_core::math::vec(&vol.dtheta(&Mat2::identity()));
+                e.dpk1(&Mat2::identity()) - t * t.transpose() * vol.d2u(1.0)
+            })
+            .collect();
+        let mut deviatoric: Real = 0.0;
+        for (tri, el) in mesh.elements().iter().zip(&self.elements) {
+            let k = tri.stiffness(&dev[el.region as usize]);
+            let mut scale = [0.0; 6];
+            for (a, &i) in el.idx.iter().enumerate() {
+                let i = i as usize;
+                let m = self.masses[i] * el.area / area_around[i];
+                scale[2 * a] = 1.0 / m.sqrt();
+                scale[2 * a + 1] = scale[2 * a];
+            }
+            let s = Mat6::from_fn(|r, c| scale[r] * k[(r, c)] * scale[c]);
+            deviatoric = deviatoric.max(SymmetricEigen::new(s).eigenvalues.max());
+        }
+        // How many node patches each vertex lies in.
+        let mut patches = vec![0u32; mesh.n_vertices()];
+        let mut patch = Vec::new();
+        for n in 0..np.n_nodes() {
+            np.patch(mesh, n, &mut patch);
+            for &v in &patch {
+                patches[v as usize] += 1;
+            }
+        }
+        let mut nodal: Real = 0.0;
+        for n in 0..np.n_nodes() {
+            np.patch(mesh, n, &mut patch);
+            let mut h = vec![Vec2::zeros(); patch.len()];
+            for &(t, _) in np.entries(n) {
+                let el = &mesh.elements()[t as usize];
+                let g = el.gradients();
+                for (corner, &v) in mesh.triangles()[t as usize].iter().enumerate() {
+                    let slot = patch.binary_search(&v).expect("patch holds the vertex");
+                    h[slot] += g[corner] * (el.area / 3.0);
+                }
+            }
+            let law = energies
+                .energy_of(np.entries(n)[0].0 as usize)
+                .volumetric();
+            let q: Real = (patch.iter().zip(&h))
+                .map(|(&v, hv)| {
+                    let m = self.masses[v as usize] / Real::from(patches[v as usize]);
+                    hv.norm_squared() / m
+                })
+                .sum();
+            nodal = nodal.max(law.d2u(1.0) / np.volume(n) * q);
+        }
+        (deviatoric + nodal).sqrt()
     }
 
     /// The explicit critical time step of the elastic body, s: `2 / omega`, with `omega` the
