@@ -45,7 +45,7 @@ use crate::build::{
 use crate::drag::{DragPlayer, DragTrajectory};
 use crate::error::SceneError;
 use crate::region_stats::{RegionFrame, RegionSummary, RegionTracker};
-use crate::scene::LoadedScene;
+use crate::scene::{Formulation, LoadedScene};
 
 /// A monotonic clock, read for the run's timings.
 pub trait Clock {
@@ -265,6 +265,10 @@ pub struct Summary {
     pub solver: SolverKind,
     /// `plane-strain` or `plane-stress`.
     pub plane: PlaneModel,
+    /// The element formulation the run used (`material.formulation` resolved): `standard` or
+    /// `averaged-pressure`.
+    #[serde(default)]
+    pub formulation: Formulation,
     /// The von Mises formula used.
     pub von_mises_formula: String,
     /// Time step, s (as given in the scene; a load-stepping run does not use it).
@@ -778,6 +782,11 @@ fn run_with<E: Energy>(
         energy: s.energy,
         solver: s.solver.kind,
         plane: s.material.plane,
+        formulation: if crate::build::averaged_pressure(scene) {
+            Formulation::AveragedPressure
+        } else {
+            Formulation::Standard
+        },
         von_mises_formula: rec.formula.describe(),
         dt: s.solver.dt,
         steps: s.solver.planned_steps(),

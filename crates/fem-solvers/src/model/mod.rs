@@ -916,9 +916,7 @@ impl<E: Energy> Model<E> {
                     h[slot] += g[corner] * (el.area / 3.0);
                 }
             }
-            let law = energies
-                .energy_of(np.entries(n)[0].0 as usize)
-                .volumetric();
+            let law = energies.energy_of(np.entries(n)[0].0 as usize).volumetric();
             let q: Real = (patch.iter().zip(&h))
                 .map(|(&v, hv)| {
                     let m = self.masses[v as usize] / Real::from(patches[v as usize]);

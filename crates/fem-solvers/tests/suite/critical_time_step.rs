@@ -172,7 +172,8 @@ fn averaged_pressure_critical_time_step_is_conservative() {
             .unwrap()
             .lame(fem_core::PlaneModel::PlaneStrain);
         for pattern in PATTERNS {
-            let mut model = cantilever(beam(20, 4, pattern), NeoHookean::new(lame).unwrap()).unwrap();
+            let mut model =
+                cantilever(beam(20, 4, pattern), NeoHookean::new(lame).unwrap()).unwrap();
             let plain = model.elastic_critical_time_step();
             model.set_averaged_pressure(true).unwrap();
             assert!(model.energies().nodal_pressure().is_some());
@@ -192,7 +193,11 @@ fn averaged_pressure_critical_time_step_is_conservative() {
                 damping: CASE_A_DAMPING,
                 ..Default::default()
             };
-            assert_eq!(run(&model, params, 2000), None, "nu {nu} {pattern:?} at dt {dt:e}");
+            assert_eq!(
+                run(&model, params, 2000),
+                None,
+                "nu {nu} {pattern:?} at dt {dt:e}"
+            );
         }
     }
 }
