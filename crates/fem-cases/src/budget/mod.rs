@@ -733,6 +733,14 @@ fn cannot_run(scene: &LoadedScene, energy: EnergyKind, framework: Framework) -> 
             framework.name()
         ));
     }
+    if s.material.formulation == fem_scene::scene::Formulation::AveragedPressure
+        && !framework.solver().capabilities().averaged_pressure
+    {
+        return Some(format!(
+            "{} does not support the averaged nodal pressure triangle (material.formulation = averaged-pressure)",
+            framework.name()
+        ));
+    }
     if framework == Framework::Pd && energy != EnergyKind::Corotational {
         return Some("Projective Dynamics runs the co-rotational energy only".into());
     }
