@@ -224,6 +224,68 @@ impl PressureFields {
         self.evaluate(np, mesh, energy, x, false);
     }
 
+    /// The measures `theta_e`, the nodes' `theta_n` and pressures, and in place of the
+    /// corrections each element's mean nodal pressure `p_e` ([`PressureFields::correction`]
+    /// then holds `p_e`, not `p_e - U'(theta_e)`): for a kernel that evaluates `U'(theta_e)`
+    /// itself, batched.
+    pub fn update_mean_pressures<M: EnergyOf>(
+        &mut self,
+        np: &NodalPressure,
+        mesh: &Mesh,
+        energy: &M,
+        x: &[Vec2],
+    ) {
+        let ne = mesh.n_triangles();
+        self.theta.resize(ne, 0.0);
+        self.corr.resize(ne, 0.0);
+        self.theta
+            .par_chunks_mut(ELEMENT_CHUNK)
+            .enumerate()
+            .for_each(|(c, theta)| {
+                for (k, th) in theta.iter_mut().enumerate() {
+                    let t = c * ELEMENT_CHUNK + k;
+                    let f = mesh.elements()[t].deformation_gradient(mesh.gather(t, x));
+                    *th = energy.energy_of(t).volumetric().theta(&f);
+                }
+            });
+        self.nodes(np, energy);
+        let node_p = &self.node_p;
+        self.corr
+            .par_chunks_mut(ELEMENT_CHUNK)
+            .enumerate()
+            .for_each(|(c, corr)| {
+                for (k, co) in corr.iter_mut().enumerate() {
+                    let [a, b, d] =
+                        np.corner_node[c * ELEMENT_CHUNK + k].map(|n| node_p[n as usize]);
+                    *co = (a + b + d) / 3.0;
+                }
+            });
+    }
+
+    /// `theta_n` and `p_n` from `theta_e`.
+    fn nodes<M: EnergyOf>(&mut self, np: &NodalPressure, energy: &M) {
+        let nn = np.n_nodes();
+        self.node_theta.resize(nn, 0.0);
+        self.node_p.resize(nn, 0.0);
+        let theta = &self.theta;
+        (self.node_theta.par_chunks_mut(NODE_CHUNK))
+            .zip(self.node_p.par_chunks_mut(NODE_CHUNK))
+            .enumerate()
+            .for_each(|(c, (th, p))| {
+                for i in 0..th.len() {
+                    let n = c * NODE_CHUNK + i;
+                    let range = np.offsets[n] as usize..np.offsets[n + 1] as usize;
+                    let mut tn = 0.0;
+                    for (&(t, _), w) in np.entries[range.clone()].iter().zip(&np.weights[range]) {
+                        tn += w * theta[t as usize];
+                    }
+                    let vol = energy.energy_of(np.entries(n)[0].0 as usize).volumetric();
+                    th[i] = tn;
+                    p[i] = vol.du(tn);
+                }
+            });
+    }
+
     fn evaluate<M: EnergyOf>(
         &mut self,
         np: &NodalPressure,
@@ -272,24 +334,8 @@ impl PressureFields {
                     }
                 });
         }
-        let theta = &self.theta;
+        self.nodes(np, energy);
         let node_k = &mut self.node_k;
-        (self.node_theta.par_chunks_mut(NODE_CHUNK))
-            .zip(self.node_p.par_chunks_mut(NODE_CHUNK))
-            .enumerate()
-            .for_each(|(c, (th, p))| {
-                for i in 0..th.len() {
-                    let n = c * NODE_CHUNK + i;
-                    let range = np.offsets[n] as usize..np.offsets[n + 1] as usize;
-                    let mut tn = 0.0;
-                    for (&(t, _), w) in np.entries[range.clone()].iter().zip(&np.weights[range]) {
-                        tn += w * theta[t as usize];
-                    }
-                    let vol = energy.energy_of(np.entries(n)[0].0 as usize).volumetric();
-                    th[i] = tn;
-                    p[i] = vol.du(tn);
-                }
-            });
         if full {
             let node_theta = &self.node_theta;
             node_k

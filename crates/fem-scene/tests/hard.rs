@@ -32,37 +32,45 @@ fn squash_neo_hookean_recovers_and_stvk_stays_collapsed() {
     assert!(stvk.summary.inverted_elements > 0);
 }
 
-/// Nearly incompressible tissue sheared by 2 cm: the implicit-Euler family keeps every
-/// triangle's area within 2 % (Neo-Hookean's volume term, lambda = 16 mu), and VBD and
-/// quasi-Newton end near implicit Euler's centre displacement (measured 10.92 mm after 0.3 s, all three).
+/// Nearly incompressible tissue sheared by 2 cm, on plain triangles: the implicit-Euler family
+/// keeps every triangle's area within 2 % (Neo-Hookean's volume term, lambda = 16 mu), and VBD
+/// and quasi-Newton end near implicit Euler's centre displacement (measured 10.92 mm after
+/// 0.3 s, all three). With the averaged nodal pressure triangle (the scene's `auto` default at
+/// nu = 0.49) the volume constraint is per node, so single triangles may change area more
+/// (measured min det F 0.975) while the solvers still agree on the centre.
 #[test]
 fn incompressible_block_keeps_its_area_under_the_implicit_family() {
-    let reference = run_fixture("incompressible", &["solver.steps=300"]);
-    let centre = reference.probe("centre").unwrap().last().unwrap()[0];
-    assert!(
-        reference.summary.min_det_f > 0.98,
-        "{}",
-        reference.summary.min_det_f
-    );
-    for solver in ["vbd", "quasi-newton"] {
-        let r = run_fixture(
-            "incompressible",
-            &[
-                "solver.steps=300",
-                &format!("solver.kind={solver}"),
-                "solver.iterations=50",
-            ],
-        );
-        let c = r.probe("centre").unwrap().last().unwrap()[0];
-        eprintln!(
-            "{solver}: centre {c:.5} m against implicit Euler's {centre:.5} m, min det F {:.4}",
-            r.summary.min_det_f
-        );
-        assert!(r.summary.min_det_f > 0.98, "{solver}");
+    for (formulation, min_det) in [("standard", 0.98), ("averaged-pressure", 0.97)] {
+        let f = format!("material.formulation={formulation}");
+        let reference = run_fixture("incompressible", &["solver.steps=300", &f]);
+        assert_eq!(reference.summary.formulation.name(), formulation);
+        let centre = reference.probe("centre").unwrap().last().unwrap()[0];
         assert!(
-            (c - centre).abs() < 0.05 * centre.abs(),
-            "{solver}: {c} vs {centre}"
+            reference.summary.min_det_f > min_det,
+            "{formulation}: {}",
+            reference.summary.min_det_f
         );
+        for solver in ["vbd", "quasi-newton"] {
+            let r = run_fixture(
+                "incompressible",
+                &[
+                    "solver.steps=300",
+                    &format!("solver.kind={solver}"),
+                    "solver.iterations=50",
+                    &f,
+                ],
+            );
+            let c = r.probe("centre").unwrap().last().unwrap()[0];
+            eprintln!(
+                "{formulation}, {solver}: centre {c:.5} m against implicit Euler's {centre:.5} m, min det F {:.4}",
+                r.summary.min_det_f
+            );
+            assert!(r.summary.min_det_f > min_det, "{formulation}, {solver}");
+            assert!(
+                (c - centre).abs() < 0.05 * centre.abs(),
+                "{formulation}, {solver}: {c} vs {centre}"
+            );
+        }
     }
 }
 
@@ -108,7 +116,11 @@ fn a_stiff_inclusion_barely_deforms_and_sets_the_explicit_step() {
         let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/scenes/hard");
         let path = dir.join("stiff-inclusion.toml");
         let text = std::fs::read_to_string(&path).unwrap();
-        let o: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();
+        // The element bound of plain triangles (the averaged nodal pressure triangle's bound
+        // adds a nodal part: docs/energies.md).
+        let o: Vec<String> = (overrides.iter().map(|s| s.to_string()))
+            .chain(["material.formulation=standard".to_string()])
+            .collect();
         let scene = parse_scene(&text, "stiff-inclusion.toml", &dir, &o).unwrap();
         let mesh = fem_scene::build::build_mesh(&scene, &fem_scene::build::NoFiles).unwrap();
         let e = fem_scene::build::energy(&scene).unwrap();

@@ -209,15 +209,16 @@ struct BlockForces {
 /// Each lane performs exactly the operations of the scalar [`deformation_gradient`] and
 /// [`energy_gradients`].
 ///
-/// With `corr` (the averaged nodal pressure triangle's per-element corrections `c_e` of this
-/// block's lanes, see [`fem_core::nodal_pressure::PressureFields::correction`]) each lane's `P`
-/// gains `c_e dtheta/dF` (`c_e cof F`, or `c_e I` for the trace measure).
+/// With `pressure` (the averaged nodal pressure triangle's mean nodal pressure `p_e` of each
+/// lane, [`fem_core::nodal_pressure::PressureFields::update_mean_pressures`]) each lane's `P`
+/// gains `(p_e - U'(theta_e)) dtheta/dF` (times `cof F`, or `I` for the trace measure), with
+/// `U'(theta_e)` evaluated here, batched.
 #[inline(always)]
 fn block_forces<E: Energy>(
     energies: &ElementEnergies<E>,
     b: &ElementBlock,
     x: &[Vec2],
-    corr: Option<(Lanes, VolumeMeasure)>,
+    pressure: Option<Lanes>,
 ) -> BlockForces {
     // Each vertex is read as one 16-byte pair, then the pairs are split into x and y lanes.
     let gather = |idx: &[u32; LANES]| {
@@ -256,6 +257,22 @@ fn block_forces<E: Energy>(
         p
     };
     let (mut p00, mut p10, mut p01, mut p11) = (p.m00(), p.m10(), p.m01(), p.m11());
+    let corr = pressure.map(|pe| {
+        let vol = energies.energies()[b.regions[0] as usize].volumetric();
+        let du = if b.region != MIXED {
+            let theta = match vol.measure() {
+                VolumeMeasure::Determinant => f.determinant(),
+                VolumeMeasure::Trace => f.m00() + f.m11() - 1.0,
+            };
+            vol.du_lanes(theta)
+        } else {
+            Lanes(std::array::from_fn(|l| {
+                let v = energies.energies()[b.regions[l] as usize].volumetric();
+                v.du(v.theta(&f.lane(l)))
+            }))
+        };
+        (pe - du, vol.measure())
+    });
     match corr {
         None => {}
         Some((c, VolumeMeasure::Determinant)) => {
@@ -334,15 +351,16 @@ fn blocks_forces<E: Energy>(
     blocks: &[ElementBlock],
     n_elements: usize,
     x: &[Vec2],
-    corr: Option<(&[Real], VolumeMeasure)>,
+    pressure: Option<&[Real]>,
     mut scatter: impl FnMut(usize, usize, u32, Vec2),
 ) -> Inversion {
     let mut lanes = LaneInversion::EMPTY;
     let mut tail = Inversion::EMPTY;
     for (k, b) in blocks.iter().enumerate() {
-        let c = corr.map(|(c, m)| {
-            let lane = |l: usize| c.get(k * LANES + l).copied().unwrap_or(0.0);
-            (Lanes(std::array::from_fn(lane)), m)
+        let c = pressure.map(|c| {
+            // A padded lane repeats the block's first element (see `pack_blocks`).
+            let lane = |l: usize| c.get(k * LANES + l).copied().unwrap_or(c[k * LANES]);
+            Lanes(std::array::from_fn(lane))
         });
         let bf = block_forces(energy, b, x, c);
         let valid = (n_elements - k * LANES).min(LANES);
@@ -369,7 +387,7 @@ pub(crate) fn forces_serial<E: Energy>(
     x: &[Vec2],
     f: &mut [Vec2],
     isa: Isa,
-    corr: Option<(&[Real], VolumeMeasure)>,
+    pressure: Option<&[Real]>,
 ) -> Inversion {
     f.fill(Vec2::zeros());
     isa.run(
@@ -380,7 +398,7 @@ pub(crate) fn forces_serial<E: Energy>(
                 blocks,
                 mesh.n_triangles(),
                 x,
-                corr,
+                pressure,
                 |_, _, v, fc| {
                     f[v as usize] += fc;
                 },
@@ -405,10 +423,10 @@ pub(crate) fn forces<E: Energy>(
     f: &mut [Vec2],
     slots: &mut Vec<Vec2>,
     isa: Isa,
-    corr: Option<(&[Real], VolumeMeasure)>,
+    pressure: Option<&[Real]>,
 ) -> Inversion {
     if fem_core::par::current_num_threads() == 1 {
-        return forces_serial(energy, blocks, mesh, x, f, isa, corr);
+        return forces_serial(energy, blocks, mesh, x, f, isa, pressure);
     }
     let plan = mesh.scatter_plan();
     let n = mesh.n_triangles();
@@ -422,12 +440,12 @@ pub(crate) fn forces<E: Energy>(
         let inv = isa.run(
             #[inline(always)]
             || {
-                let corr = corr.map(|(c, m)| (&c[first..], m));
-                blocks_forces(energy, bs, n - first, x, corr, |e, c, _, fc| {
-                    match plan.targets(first + e)[c] {
-                        Target::Owned(i) => owned[i] += fc,
-                        Target::Shared(s) => slots[s - base] = fc,
-                    }
+                let pressure = pressure.map(|c| &c[first..]);
+                blocks_forces(energy, bs, n - first, x, pressure, |e, c, _, fc| match plan
+                    .targets(first + e)[c]
+                {
+                    Target::Owned(i) => owned[i] += fc,
+                    Target::Shared(s) => slots[s - base] = fc,
                 })
             },
         );
@@ -566,9 +584,8 @@ mod tests {
             .unwrap();
             let np = fem_core::energy::EnergyOf::nodal_pressure(&energies).unwrap();
             let mut fields = fem_core::nodal_pressure::PressureFields::new();
-            fields.update_corrections(np, &mesh, &energies, &x);
-            let measure = base.volumetric().measure();
-            let corr = Some((fields.correction(), measure));
+            fields.update_mean_pressures(np, &mesh, &energies, &x);
+            let corr = Some(fields.correction());
             let mut batched = vec![Vec2::zeros(); x.len()];
             let isa = Isa::detected();
             forces_serial(&energies, &blocks, &mesh, &x, &mut batched, isa, corr);

@@ -4,7 +4,7 @@
 //! element), and what the averaged nodal pressure triangle ([`crate::nodal_pressure`]) moves to
 //! the mesh's nodes.
 
-use crate::math::{Mat2, Mat4, Real, cofactor, ln, vec_index};
+use crate::math::{Lanes, Mat2, Mat4, Real, cofactor, ln, vec_index};
 
 /// How an energy measures an element's change of volume.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -89,6 +89,17 @@ impl Volumetric {
                     return Real::NAN;
                 }
                 lambda * ln(theta) / theta
+            }
+        }
+    }
+
+    /// [`Volumetric::du`] of a batch: lane `i` is bit-identical to `du(theta[i])`.
+    #[inline(always)]
+    pub fn du_lanes(&self, theta: Lanes) -> Lanes {
+        match *self {
+            Volumetric::Quadratic { lambda, alpha, .. } => (theta - alpha) * lambda,
+            Volumetric::LogSquared { lambda } => {
+                theta.select_positive(theta.ln() * lambda / theta, Real::NAN)
             }
         }
     }

@@ -186,9 +186,8 @@ impl Stepper for ExplicitStepper {
         let corr = match energies.nodal_pressure() {
             Some(np) => {
                 self.pressure
-                    .update_corrections(np, model.elastic_mesh(), energies, &state.x);
-                let measure = energies.base().volumetric().measure();
-                Some((self.pressure.correction(), measure))
+                    .update_mean_pressures(np, model.elastic_mesh(), energies, &state.x);
+                Some(self.pressure.correction())
             }
             None => None,
         };
