@@ -202,6 +202,25 @@ fn check_against_native(site: &Path) -> Result<(), String> {
             "solver.integrator=\"bdf2\"".into(),
         ]);
     }
+    // The averaged nodal pressure triangle (nearly incompressible, two materials) under every
+    // solver that supports it, and on case D (contact, rigid bones) under the scene's solver.
+    let averaged = native(&["--list-averaged-pressure-solvers".to_owned()])?;
+    for solver in averaged.split_whitespace() {
+        checks.push(vec![
+            "case-a".into(),
+            SOLVER_STEPS.to_string(),
+            "energy=\"neo-hookean\"".into(),
+            "material.poisson_ratio=0.49".into(),
+            "material.formulation=\"averaged-pressure\"".into(),
+            format!("solver.kind=\"{solver}\""),
+        ]);
+    }
+    checks.push(vec![
+        "case-d".into(),
+        CONTACT_STEPS.to_string(),
+        "material.poisson_ratio=0.49".into(),
+        "material.formulation=\"averaged-pressure\"".into(),
+    ]);
     // Case D at a headset's frame step under every solver that handles contact (barrier
     // contact in implicit, static, VBD and quasi-Newton), so contact is bit-identical in
     // WebAssembly too.

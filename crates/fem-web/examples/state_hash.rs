@@ -6,13 +6,17 @@
 //! (each `KEY=VALUE` is set before stepping, as the page's controls do);
 //! `state_hash --list-solvers` prints the registry's solver names, `--list-contact-solvers`
 //! those that handle contact, `--list-integrator-solvers` those with a choice of time
-//! integrator (BDF2).
+//! integrator (BDF2), `--list-averaged-pressure-solvers` those with the averaged nodal pressure
+//! triangle.
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let list = args.first().map(String::as_str);
     if let Some(
-        which @ ("--list-solvers" | "--list-contact-solvers" | "--list-integrator-solvers"),
+        which @ ("--list-solvers"
+        | "--list-contact-solvers"
+        | "--list-integrator-solvers"
+        | "--list-averaged-pressure-solvers"),
     ) = list
     {
         let names: Vec<&str> = fem_solvers::SolverKind::ALL
@@ -20,6 +24,7 @@ fn main() {
             .filter(|k| match which {
                 "--list-contact-solvers" => k.capabilities().contact,
                 "--list-integrator-solvers" => k.default_params().integrator().is_some(),
+                "--list-averaged-pressure-solvers" => k.capabilities().averaged_pressure,
                 _ => true,
             })
             .map(|k| k.name())
