@@ -1,8 +1,8 @@
 //! `cargo xtask`: the project's only script host (see `.cargo/config.toml` for the alias).
 //!
-//! - `cargo xtask ci`: what `.ci/run` checks, in the same order (format, clippy on all targets
-//!   with warnings denied, the test suite, Table 1 against its baseline, and compiling the
-//!   benches).
+//! - `cargo xtask ci`: the core of what `.ci/run` checks, in the same order (format, clippy on
+//!   all targets with warnings denied, the test suite, Table 1 against its baseline, and the
+//!   Python package's tests).
 //! - `cargo xtask bench [ARGS...]`: the criterion benches of every crate, arguments passed on
 //!   (`cargo xtask bench -- forces/neo-hookean`).
 //! - `cargo xtask tidy`: the style and layering checks alone (they also run under `cargo test`).
@@ -25,6 +25,9 @@
 //!   `docs/using-the-crates.md` says, from a workspace of its own) natively and for WebAssembly,
 //!   run it natively and under node, and require the same report (explicit, implicit and
 //!   meshing, each checked by the program).
+//! - `cargo xtask python [--bench] [--no-test]`: the Python package `pyfem2d`
+//!   (`crates/fem-py`) in a virtual environment of its own under the target directory, built
+//!   by maturin in release, and its pytest tests; `--bench` its per-step overhead benchmark.
 //! - `cargo xtask goldens`: regenerate `fixtures/goldens/case-{a,b,c,d}.json`, checked by
 //!   `crates/fem-cases/tests/suite/goldens.rs`.
 //!
@@ -36,6 +39,7 @@ mod bench_peers;
 mod consumer;
 mod figures;
 mod goldens;
+mod python;
 mod stability;
 mod svg;
 mod table1;
@@ -47,8 +51,8 @@ use std::process::{Command, ExitCode};
 const USAGE: &str = "usage: cargo xtask <task> [ARGS...]
 
 tasks:
-  ci                   what .ci/run checks: fmt, clippy (warnings denied), tests, Table 1
-                       against its baseline, benches compile
+  ci                   the core of .ci/run: fmt, clippy (warnings denied), tests, Table 1
+                       against its baseline, the Python package's tests
   bench [ARGS...]      the criterion benches of every crate (arguments passed on)
   tidy                 the style and layering checks alone
   table1 [--check]     regenerate docs/table1.md and docs/table1.json from `fem2d table1`;
@@ -77,7 +81,12 @@ tasks:
                        save the test's picture
   consumer             build examples/consumer (the crates used as the docs say, outside the
                        workspace) natively and for WebAssembly; run it natively and under
-                       node; the two reports (explicit, implicit, meshing) must be equal";
+                       node; the two reports (explicit, implicit, meshing) must be equal
+  python [--bench] [--no-test]
+                       the Python package (crates/fem-py): a virtual environment in
+                       target/python-venv with maturin, numpy, pytest and meshio from the
+                       Python package index, `maturin develop --release`, its pytest tests;
+                       --bench: the per-step overhead against the same steps in Rust";
 
 fn cargo(args: &[&str]) -> Result<(), String> {
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".to_owned());
@@ -108,7 +117,7 @@ fn run(args: &[String]) -> Result<(), String> {
             ])?;
             cargo(&["test", "--workspace"])?;
             table1::run(&["--check"])?;
-            cargo(&["bench", "--workspace", "--no-run"])
+            python::run(&[])
         }
         Some("bench") => {
             let mut a = vec!["bench", "--workspace"];
@@ -124,6 +133,7 @@ fn run(args: &[String]) -> Result<(), String> {
         Some("figures") => figures::run(&rest),
         Some("web") => web::run(&rest),
         Some("consumer") => consumer::run(&rest),
+        Some("python") => python::run(&rest),
         Some("help" | "-h" | "--help") => {
             println!("{USAGE}");
             Ok(())
