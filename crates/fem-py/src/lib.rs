@@ -11,7 +11,7 @@
 //!   one-line message; a file that cannot be read `pyfem2d.FileError` (an `OSError`); a run
 //!   whose step fails (a blow-up, no convergence) `pyfem2d.StepFailedError`; all three derive
 //!   from `pyfem2d.Fem2dError`;
-//! - no Rust panic reaches Python: [`guard`] catches it and raises `pyfem2d.InternalError`
+//! - no Rust panic reaches Python: `guard` catches it and raises `pyfem2d.InternalError`
 //!   (a `Fem2dError`, so `except Exception` sees it) instead of PyO3's `PanicException`, a
 //!   `BaseException`;
 //! - steps release the GIL, and long runs check for signals between chunks (Ctrl-C).
