@@ -426,22 +426,34 @@ impl Simulation {
         })
     }
 
-    /// Take `n` steps (load increments for the static solver) with the GIL released; the
-    /// last step's report. A failed step raises `StepFailedError` and stops the simulation.
+    /// Take `n` steps (load increments for the static solver) with the GIL released, looking
+    /// for signals (Ctrl-C) between chunks; the last step's report. A failed step raises
+    /// `StepFailedError` and stops the simulation.
     #[pyo3(signature = (n=1))]
-    fn step(&mut self, py: Python<'_>, n: u64) -> PyResult<Option<StepReport>> {
+    fn step(slf: &Bound<'_, Self>, py: Python<'_>, n: u64) -> PyResult<Option<StepReport>> {
         guard(|| {
-            self.check_running()?;
-            let (_, failed) = py.detach(|| self.steps(n, None));
-            if let Some(m) = failed {
-                return Err(blow_up(m));
+            slf.borrow().check_running()?;
+            let mut left = n;
+            while left > 0 {
+                let (taken, failed) = {
+                    let mut guard = slf.borrow_mut();
+                    let sim: &mut Simulation = &mut guard;
+                    py.detach(|| sim.steps(left, Some(CHUNK_SECONDS)))
+                };
+                if let Some(m) = failed {
+                    return Err(blow_up(m));
+                }
+                left -= taken;
+                if left > 0 {
+                    py.check_signals()?;
+                }
             }
-            Ok(self.report.as_ref().map(StepReport::from))
+            Ok(slf.borrow().report.as_ref().map(StepReport::from))
         })
     }
 
-    /// Step `seconds` of simulated time (`None`: the scene's length, `solver.steps` steps or
-    /// the full load), calling `callback(sim)` every `every` steps (a callback that returns
+    /// Step `seconds` of simulated time (`None`: to the scene's end, `solver.steps` steps from
+    /// the start or the full load), calling `callback(sim)` every `every` steps (a callback that returns
     /// `False` stops the run). Checks for signals (Ctrl-C) between chunks. The steps taken.
     #[pyo3(signature = (seconds=None, callback=None, every=1))]
     fn run(
@@ -462,7 +474,7 @@ impl Simulation {
                 let total = match seconds {
                     Some(s) => sim.steps_for(s)?,
                     None if load_factor => u64::MAX,
-                    None => sim.scene.scene.solver.steps,
+                    None => sim.scene.scene.solver.steps.saturating_sub(sim.state.step),
                 };
                 (total, load_factor)
             };

@@ -134,9 +134,11 @@ def test_run_with_a_callback_every_n_steps(beam):
     assert beam.steps_taken == 150 and stopped == 50
 
 
-def test_run_without_seconds_runs_the_scene_length():
+def test_run_without_seconds_runs_to_the_scene_end():
     sim = pyfem2d.Simulation("case-a", steps=120)
-    assert sim.run() == 120
+    sim.step(20)
+    assert sim.run() == 100 and sim.steps_taken == 120
+    assert sim.run() == 0
     static = pyfem2d.Simulation("case-a", solver="static")
     static.run()
     assert static.time == pytest.approx(1.0)
@@ -144,13 +146,17 @@ def test_run_without_seconds_runs_the_scene_length():
         static.run(1.0)
 
 
-def test_ctrl_c_interrupts_a_long_run():
+@pytest.mark.parametrize("how", ["run", "step"])
+def test_ctrl_c_interrupts_a_long_run(how):
     sim = pyfem2d.Simulation("case-d")
     timer = threading.Timer(0.5, _thread.interrupt_main)
     timer.start()
     start = time.monotonic()
     with pytest.raises(KeyboardInterrupt):
-        sim.run(1e6)
+        if how == "run":
+            sim.run(1e6)
+        else:
+            sim.step(10**9)
     timer.cancel()
     assert time.monotonic() - start < 30.0
     # Interrupted between steps: the state is whole and stepping goes on.
