@@ -346,27 +346,53 @@ fn mesh_error(message: &str) -> PyErr {
     invalid(format!("mesh: {message}"))
 }
 
+/// The rows of `array` when it has `cols` columns, else an error naming `what` and `shape`.
+fn rows<'a, T: Copy + numpy::Element>(
+    array: &'a PyArrayLike2<'_, T, AllowTypeChange>,
+    cols: usize,
+    what: &str,
+    shape: &str,
+) -> PyResult<numpy::ndarray::ArrayView2<'a, T>> {
+    let a = array.as_array();
+    if a.ncols() != cols {
+        return Err(invalid(format!(
+            "{what}: expected shape {shape}, got ({}, {})",
+            a.nrows(),
+            a.ncols()
+        )));
+    }
+    Ok(a)
+}
+
+/// Triangles as vertex indices, each checked to be in `0..n` (any non-negative index when `n`
+/// is `None`: the mesh check names the rest).
+fn triangle_rows(
+    triangles: &PyArrayLike2<'_, i64, AllowTypeChange>,
+    n: Option<usize>,
+    shape: &str,
+) -> PyResult<Vec<[usize; 3]>> {
+    let t = rows(triangles, 3, "triangles", shape)?;
+    let mut out = Vec::with_capacity(t.nrows());
+    for (k, row) in t.rows().into_iter().enumerate() {
+        let mut tri = [0usize; 3];
+        for (c, &i) in row.iter().enumerate() {
+            let valid = usize::try_from(i).ok().filter(|&i| n.is_none_or(|n| i < n));
+            tri[c] = valid.ok_or_else(|| {
+                let count = n.map_or(String::new(), |n| format!(", but there are {n} points"));
+                invalid(format!("triangles: row {k} names vertex {i}{count}"))
+            })?;
+        }
+        out.push(tri);
+    }
+    Ok(out)
+}
+
 /// A surface from `(k, 3)` points and `(l, 3)` triangles, checked.
 fn surface(
     points: &PyArrayLike2<'_, f64, AllowTypeChange>,
     triangles: &PyArrayLike2<'_, i64, AllowTypeChange>,
 ) -> PyResult<Surface3> {
-    let p = points.as_array();
-    let t = triangles.as_array();
-    if p.ncols() != 3 {
-        return Err(invalid(format!(
-            "points: expected shape (k, 3), got ({}, {})",
-            p.nrows(),
-            p.ncols()
-        )));
-    }
-    if t.ncols() != 3 {
-        return Err(invalid(format!(
-            "triangles: expected shape (l, 3), got ({}, {})",
-            t.nrows(),
-            t.ncols()
-        )));
-    }
+    let p = rows(points, 3, "points", "(k, 3)")?;
     let vertices: Vec<[f64; 3]> = p.rows().into_iter().map(|r| [r[0], r[1], r[2]]).collect();
     if let Some((i, v)) = vertices
         .iter()
@@ -375,23 +401,10 @@ fn surface(
     {
         return Err(invalid(format!("points: row {i} is {v:?}, not finite")));
     }
-    let n = vertices.len() as i64;
-    let mut tris = Vec::with_capacity(t.nrows());
-    for (k, row) in t.rows().into_iter().enumerate() {
-        let mut tri = [0usize; 3];
-        for (c, &i) in row.iter().enumerate() {
-            if i < 0 || i >= n {
-                return Err(invalid(format!(
-                    "triangles: row {k} names vertex {i}, but there are {n} points"
-                )));
-            }
-            tri[c] = i as usize;
-        }
-        tris.push(tri);
-    }
+    let triangles = triangle_rows(triangles, Some(vertices.len()), "(l, 3)")?;
     Ok(Surface3 {
         vertices,
-        triangles: tris,
+        triangles,
     })
 }
 
@@ -428,33 +441,8 @@ pub fn mesh_json<'py>(
     region_names: Option<Vec<String>>,
 ) -> PyResult<String> {
     guard(|| {
-        let p = points.as_array();
-        if p.ncols() != 2 {
-            return Err(invalid(format!(
-                "points: expected shape (n, 2), got ({}, {})",
-                p.nrows(),
-                p.ncols()
-            )));
-        }
-        let t = triangles.as_array();
-        if t.ncols() != 3 {
-            return Err(invalid(format!(
-                "triangles: expected shape (m, 3), got ({}, {})",
-                t.nrows(),
-                t.ncols()
-            )));
-        }
-        let mut tris = Vec::with_capacity(t.nrows());
-        for (k, row) in t.rows().into_iter().enumerate() {
-            let mut tri = [0usize; 3];
-            for (c, &i) in row.iter().enumerate() {
-                if i < 0 {
-                    return Err(invalid(format!("triangles: row {k} names vertex {i}")));
-                }
-                tri[c] = i as usize;
-            }
-            tris.push(tri);
-        }
+        let p = rows(&points, 2, "points", "(n, 2)")?;
+        let tris = triangle_rows(&triangles, None, "(m, 3)")?;
         let mesh = Mesh2 {
             vertices: p.rows().into_iter().map(|r| [r[0], r[1]]).collect(),
             triangles: tris,
