@@ -88,30 +88,11 @@ impl VertexColouring {
     /// Colour the vertices of `mesh` for which `free` is true; two vertices of one triangle
     /// never share a colour.
     pub fn greedy(mesh: &Mesh, free: &[bool]) -> Self {
-        let nv = mesh.n_vertices();
         let adj = mesh.adjacency();
         let tris = mesh.triangles();
-        let mut colour = vec![u32::MAX; nv];
-        // stamp[c] == v marks colour c as taken for vertex v.
-        let mut stamp: Vec<usize> = Vec::new();
-        let mut n_colours = 0usize;
-        for v in (0..nv).filter(|&v| free[v]) {
-            for &(t, _) in adj.of(v) {
-                for &u in &tris[t as usize] {
-                    let c = colour[u as usize];
-                    if c != u32::MAX {
-                        stamp[c as usize] = v;
-                    }
-                }
-            }
-            let c = (0..n_colours).find(|&c| stamp[c] != v).unwrap_or_else(|| {
-                stamp.push(usize::MAX);
-                n_colours += 1;
-                n_colours - 1
-            });
-            colour[v] = c as u32;
-        }
-        Self::from_colours(&colour, n_colours)
+        Self::greedy_by(mesh.n_vertices(), free, |v| {
+            adj.of(v).iter().flat_map(move |&(t, _)| tris[t as usize])
+        })
     }
 
     /// Colour the vertices of `mesh` for which `free` is true so that no two of one colour lie
@@ -121,18 +102,24 @@ impl VertexColouring {
     /// differ, so it takes more colours than [`VertexColouring::greedy`] (about 12 to 20 on
     /// structured meshes).
     pub fn greedy_patches(mesh: &Mesh, np: &NodalPressure, free: &[bool]) -> Self {
-        Self::greedy_by(&np.stencil(mesh), free)
+        let stencil = np.stencil(mesh);
+        Self::greedy_by(stencil.len(), free, |v| stencil[v].iter().copied())
     }
 
-    /// Colour the vertices for which `free` is true, in index order, each with the smallest
-    /// colour of no vertex in its list of `neighbours` (symmetric lists).
-    fn greedy_by(neighbours: &[Vec<u32>], free: &[bool]) -> Self {
-        let nv = neighbours.len();
+    /// Colour the `nv` vertices for which `free` is true, in index order, each with the
+    /// smallest colour of no vertex among its `neighbours(v)` (a symmetric relation; `v`
+    /// itself may be listed).
+    fn greedy_by<I: Iterator<Item = u32>>(
+        nv: usize,
+        free: &[bool],
+        neighbours: impl Fn(usize) -> I,
+    ) -> Self {
         let mut colour = vec![u32::MAX; nv];
+        // stamp[c] == v marks colour c as taken for vertex v.
         let mut stamp: Vec<usize> = Vec::new();
         let mut n_colours = 0usize;
         for v in (0..nv).filter(|&v| free[v]) {
-            for &u in &neighbours[v] {
+            for u in neighbours(v) {
                 let c = colour[u as usize];
                 if c != u32::MAX {
                     stamp[c as usize] = v;

@@ -30,24 +30,10 @@ pub fn swinging(kind: EnergyKind) -> (Model<AnyEnergy>, State) {
     (model, state)
 }
 
-/// One implicit Euler step of `dt` from `state`, Newton to 1e-13.
+/// One implicit Euler step of `dt` from `state`, Newton to 1e-13 ([`tight_implicit`]).
 pub fn implicit_step(model: &Model<AnyEnergy>, state: &State, dt: Real) -> State {
-    let params = ImplicitParams {
-        dt,
-        newton: NewtonParams {
-            tolerance: 1e-13,
-            max_iterations: 200,
-            ..NewtonParams::default()
-        },
-        // Newton's tolerance alone stops it (no velocity tolerance).
-        velocity_tolerance: 0.0,
-        ..ImplicitParams::default()
-    };
     let mut s = state.clone();
-    ImplicitStepper::new(model, params)
-        .unwrap()
-        .step(model, &mut s)
-        .unwrap();
+    tight_implicit(model, dt).step(model, &mut s).unwrap();
     s
 }
 
