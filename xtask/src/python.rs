@@ -70,15 +70,6 @@ pub fn run(args: &[&str]) -> Result<(), String> {
         venv.join("bin").display(),
         std::env::var("PATH").unwrap_or_default()
     );
-    run_cmd(
-        Command::new(venv.join("bin").join("maturin"))
-            .args(["develop", "--release", "--quiet"])
-            .current_dir(&crate_dir)
-            .env("VIRTUAL_ENV", &venv)
-            .env("PATH", &path)
-            .env("CARGO_TARGET_DIR", &target),
-        "maturin develop --release (crates/fem-py)",
-    )?;
     let with_env = |cmd: &mut Command| {
         cmd.current_dir(&crate_dir)
             .env("VIRTUAL_ENV", &venv)
@@ -86,6 +77,10 @@ pub fn run(args: &[&str]) -> Result<(), String> {
             .env("CARGO_TARGET_DIR", &target)
             .env("FEM2D_BIN", &fem2d.exe);
     };
+    let mut cmd = Command::new(venv.join("bin").join("maturin"));
+    cmd.args(["develop", "--release", "--quiet"]);
+    with_env(&mut cmd);
+    run_cmd(&mut cmd, "maturin develop --release (crates/fem-py)")?;
     if test {
         let mut cmd = Command::new(&python);
         cmd.args(["-m", "pytest", "tests", "-q", "-p", "no:cacheprovider"]);

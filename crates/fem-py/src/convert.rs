@@ -120,6 +120,18 @@ fn toml_value(v: &Bound<'_, PyAny>) -> Result<toml::Value, String> {
     ))
 }
 
+/// A thread count as the command line's `--threads` takes it: 1 to
+/// [`fem_cases::run::MAX_THREADS`], or `None` for rayon's default pool.
+pub fn check_threads(threads: Option<usize>) -> PyResult<()> {
+    let max = fem_cases::run::MAX_THREADS;
+    match threads {
+        Some(n) if n == 0 || n > max => Err(invalid(format!(
+            "threads: {n} is not a thread count; give 1 to {max}, or None for rayon's default"
+        ))),
+        _ => Ok(()),
+    }
+}
+
 /// JSON text as Python data (`json.loads`).
 pub fn json_to_py<'py>(py: Python<'py>, text: &str) -> PyResult<Bound<'py, PyAny>> {
     py.import("json")?.call_method1("loads", (text,))

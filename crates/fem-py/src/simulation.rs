@@ -14,25 +14,19 @@ use fem_core::energy::{AnyEnergy, Energy};
 use fem_core::math::Vec2;
 use fem_core::mesh::Mesh;
 use fem_core::stress::{ElementStress, VonMisesFormula, populate_element_stress};
-use fem_scene::SceneError;
 use fem_scene::build::{
-    MeshSource, build_mesh, build_model, build_stepper, energy, initial_state, von_mises_formula,
+    MeshSource, build_mesh, build_simulation, build_stepper, von_mises_formula,
 };
 use fem_scene::drag::{Hand, Held};
 use fem_scene::scene::{LoadedScene, parse_scene};
 use fem_solvers::contact::ContactKind;
-use fem_solvers::{
-    AnyStepper, BodyState, Clock, ContactPressure, Grab, Model, SolverError, State, Stepper,
-};
+use fem_solvers::{AnyStepper, BodyState, Clock, ContactPressure, Grab, Model, State, Stepper};
 use numpy::{PyArray1, PyArray2, PyArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
-use crate::convert::{json_to_py, pairs, points, values};
+use crate::convert::{check_threads, json_to_py, pairs, points, values};
 use crate::{blow_up, guard, invalid, scene_err};
-
-/// Most rayon threads a simulation may ask for (the command line's `--threads` limit).
-const MAX_THREADS: usize = fem_cases::run::MAX_THREADS;
 
 /// How long a chunk of [`Simulation::run`] may step with the GIL released before it looks for
 /// signals (Ctrl-C) and lets other Python threads in, s.
@@ -166,13 +160,9 @@ fn fingerprint(mesh: &Mesh) -> u64 {
 
 /// Build everything from a loaded scene.
 fn build(scene: LoadedScene, files: &Files, threads: Option<usize>) -> Result<Simulation, PyErr> {
+    check_threads(threads)?;
     let pool = match threads {
         None => None,
-        Some(n) if n == 0 || n > MAX_THREADS => {
-            return Err(invalid(format!(
-                "threads: {n} is not a thread count; give 1 to {MAX_THREADS}, or None for rayon's default"
-            )));
-        }
         Some(n) => Some(
             rayon::ThreadPoolBuilder::new()
                 .num_threads(n)
@@ -181,7 +171,7 @@ fn build(scene: LoadedScene, files: &Files, threads: Option<usize>) -> Result<Si
         ),
     };
     let mesh = build_mesh(&scene, files).map_err(scene_err)?;
-    let (model, stepper, state) = parts(&scene, mesh.clone()).map_err(scene_err)?;
+    let (model, stepper, state) = build_simulation(&scene, mesh.clone()).map_err(scene_err)?;
     let rigid_triangles = model
         .rigid_bodies()
         .iter()
@@ -209,18 +199,6 @@ fn build(scene: LoadedScene, files: &Files, threads: Option<usize>) -> Result<Si
         pool,
         threads,
     })
-}
-
-/// The model, stepper and initial state of `scene` on `mesh`.
-fn parts(
-    scene: &LoadedScene,
-    mesh: Mesh,
-) -> Result<(Model<AnyEnergy>, AnyStepper, State), SceneError> {
-    let e = energy(scene)?;
-    let model = build_model(scene, mesh, e)?;
-    let stepper = build_stepper(scene, &model)?;
-    let state = initial_state(scene, &model)?;
-    Ok((model, stepper, state))
 }
 
 /// In-memory files from a `{name: bytes or str}` mapping.
@@ -259,37 +237,28 @@ impl Simulation {
         }
     }
 
-    /// One step, as `fem_scene::run`'s loop takes it; the failure's one-line message.
+    /// One step, as `fem_scene::run`'s loop takes it ([`fem_scene::run::step`]), then the
+    /// hand and the contact pressure; the failure's one-line message.
     fn step_once(&mut self) -> Result<(), String> {
-        let caps = self.stepper.kind().capabilities();
         self.before.clone_from(&self.state.bodies);
         let t = self.state.t;
-        let stepped = self.stepper.step(&self.model, &mut self.state);
+        let stepped = fem_scene::run::step(&mut self.stepper, &self.model, &mut self.state);
         self.version += 1;
-        let failure = match stepped {
-            Ok(report) if (caps.implicit || caps.iterations) && !report.residual.is_finite() => {
-                SolverError::BeyondPrecision {
-                    prefix: "run",
-                    detail: format!(
-                        "step {}: the solver's residual is not finite ({})",
-                        self.state.step.saturating_sub(1),
-                        report.residual
-                    ),
-                }
-            }
+        match stepped {
             Ok(report) => {
                 let dt = self.state.t - t;
                 self.hand.after_step(&mut self.state, &self.before, dt);
                 self.pressure
                     .update(&self.model, &self.state.x, self.stepper.contacts());
                 self.report = Some(report);
-                return Ok(());
+                Ok(())
             }
-            Err(e) => e,
-        };
-        let message = fem_scene::scales::explain(&self.scene, &failure);
-        self.stopped = Some(message.clone());
-        Err(message)
+            Err(e) => {
+                let message = fem_scene::scales::explain(&self.scene, &e);
+                self.stopped = Some(message.clone());
+                Err(message)
+            }
+        }
     }
 
     /// Up to `n` steps, stopping after `seconds` of wall time when given: the steps taken and
@@ -522,7 +491,9 @@ impl Simulation {
         guard(|| {
             let scene = self.scene.clone();
             let mesh = self.mesh.clone();
-            let (model, stepper, state) = py.detach(|| parts(&scene, mesh)).map_err(scene_err)?;
+            let (model, stepper, state) = py
+                .detach(|| build_simulation(&scene, mesh))
+                .map_err(scene_err)?;
             self.model = model;
             self.stepper = stepper;
             self.state = state;

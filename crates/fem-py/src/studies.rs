@@ -19,7 +19,7 @@ use numpy::{AllowTypeChange, PyArray1, PyArrayLike2, PyArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::convert::{json_to_py, points, values};
+use crate::convert::{check_threads, json_to_py, points, values};
 use crate::{guard, invalid, scene_err};
 
 /// The built-in cases' names.
@@ -118,16 +118,6 @@ pub fn run<'py>(
         )?;
         Ok(d)
     })
-}
-
-fn check_threads(threads: Option<usize>) -> PyResult<()> {
-    let max = fem_cases::run::MAX_THREADS;
-    match threads {
-        Some(n) if n == 0 || n > max => Err(invalid(format!(
-            "threads: {n} is not a thread count; give 1 to {max}, or None for rayon's default"
-        ))),
-        _ => Ok(()),
-    }
 }
 
 /// The paper's Table 1 regenerated from case A (`fem2d table1 --json`, as a dict).

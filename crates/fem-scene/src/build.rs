@@ -920,6 +920,19 @@ pub fn build_stepper<E: Energy>(
         .map_err(solver_err(scene))
 }
 
+/// The model, the stepper and the initial state of `scene` on `mesh`, with the energy chosen
+/// at run time ([`AnyEnergy`]): what a host that steps a scene itself needs (the interactive
+/// app, the Python package). [`crate::run::run`] builds the same, monomorphised per energy.
+pub fn build_simulation(
+    scene: &LoadedScene,
+    mesh: Mesh,
+) -> Result<(Model<AnyEnergy>, AnyStepper, State), SceneError> {
+    let model = build_model(scene, mesh, energy(scene)?)?;
+    let stepper = build_stepper(scene, &model)?;
+    let state = initial_state(scene, &model)?;
+    Ok((model, stepper, state))
+}
+
 /// A mass for a message: four decimals without trailing zeros (`60`, `0.125`), scientific
 /// notation beyond `[1e-3, 1e9)` (`1e300`, not three hundred digits).
 fn kilograms(m: f64) -> String {

@@ -34,7 +34,7 @@ use fem_core::stress::{ElementStress, VonMisesFormula, populate_element_stress, 
 use fem_solvers::diagnostics::rigid_loads;
 use fem_solvers::{
     AnyStepper, BodyMotion, Clock as SolverClock, Contact, ContactPressure, Model, SolverError,
-    SolverKind, State, Stepper,
+    SolverKind, State, StepReport, Stepper,
 };
 use serde::{Deserialize, Serialize};
 
@@ -954,22 +954,7 @@ fn step_loop<E: Energy>(
                 d.apply(model, state)?;
             }
             let t_before = state.t;
-            match stepper.step(model, state) {
-                Ok(report)
-                    if (caps.implicit || caps.iterations) && !report.residual.is_finite() =>
-                {
-                    // A residual that overflowed measures nothing: the step is no solution,
-                    // whatever the solver concluded from it.
-                    failed = Some(SolverError::BeyondPrecision {
-                        prefix: "run",
-                        detail: format!(
-                            "step {}: the solver's residual is not finite ({})",
-                            state.step.saturating_sub(1),
-                            report.residual
-                        ),
-                    });
-                    break;
-                }
+            match step(stepper, model, state) {
                 Ok(report) => {
                     if let Some(d) = drag.as_ref() {
                         d.after_step(state, state.t - t_before);
@@ -1046,6 +1031,30 @@ fn step_loop<E: Energy>(
         max_step_residual,
         contact,
     })
+}
+
+/// One step as a run takes it: the stepper's step, and a step whose solver reports a residual
+/// that is not finite is an error ([`SolverError::BeyondPrecision`]): a residual that
+/// overflowed measures nothing, so the step is no solution, whatever the solver concluded from
+/// it. A host that steps a scene itself calls this to take the steps [`run`] takes.
+pub fn step<E: Energy>(
+    stepper: &mut AnyStepper,
+    model: &Model<E>,
+    state: &mut State,
+) -> Result<StepReport, SolverError> {
+    let caps = stepper.kind().capabilities();
+    let report = stepper.step(model, state)?;
+    if (caps.implicit || caps.iterations) && !report.residual.is_finite() {
+        return Err(SolverError::BeyondPrecision {
+            prefix: "run",
+            detail: format!(
+                "step {}: the solver's residual is not finite ({})",
+                state.step.saturating_sub(1),
+                report.residual
+            ),
+        });
+    }
+    Ok(report)
 }
 
 /// The rigid body of each triangle plus one (0: deformable); empty without rigid regions.

@@ -25,9 +25,7 @@ use fem_core::energy::{AnyEnergy, Energy};
 use fem_core::math::{Real, Vec2};
 use fem_core::mesh::Mesh;
 use fem_core::stress::{ElementStress, VonMisesFormula, populate_element_stress};
-use fem_scene::build::{
-    MeshSource, build_mesh, build_model, build_stepper, energy, initial_state, von_mises_formula,
-};
+use fem_scene::build::{MeshSource, build_mesh, build_simulation, von_mises_formula};
 use fem_scene::cases::{case_text, load_case};
 use fem_scene::drag::{DragAction, DragEvent, DragPlayer, DragTrajectory, Hand, Held};
 use fem_scene::scene::{LoadedScene, MaterialRegionSpec, Scene, parse_scene};
@@ -621,11 +619,8 @@ fn parse(text: &str, origin: &str, overrides: &[String]) -> Result<LoadedScene, 
     parse_scene(text, origin, std::path::Path::new("."), overrides).map_err(|e| e.to_string())
 }
 
-/// The model, stepper and initial state of `scene` on `mesh`.
+/// The model, stepper and initial state of `scene` on `mesh`; the command line's message on
+/// error.
 fn build(scene: &LoadedScene, mesh: Mesh) -> Result<(Model<AnyEnergy>, AnyStepper, State), String> {
-    let e = energy(scene).map_err(|e| e.to_string())?;
-    let model = build_model(scene, mesh, e).map_err(|e| e.to_string())?;
-    let stepper = build_stepper(scene, &model).map_err(|e| e.to_string())?;
-    let state = initial_state(scene, &model).map_err(|e| e.to_string())?;
-    Ok((model, stepper, state))
+    build_simulation(scene, mesh).map_err(|e| e.to_string())
 }
