@@ -48,6 +48,7 @@
 
 pub mod assembly;
 pub mod clock;
+pub mod dim;
 pub mod element;
 pub mod energy;
 pub mod fd;

@@ -23,8 +23,8 @@ use crate::polar::Polar2;
 /// Co-rotational linear elasticity.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Corotational {
-    mu: Real,
-    lambda: Real,
+    pub(super) mu: Real,
+    pub(super) lambda: Real,
 }
 
 impl Corotational {

@@ -17,8 +17,8 @@ use crate::math::{Mat2, Mat4, Real, Vec2, linear_map_matrix, sym};
 /// Linear elasticity.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Linear {
-    mu: Real,
-    lambda: Real,
+    pub(super) mu: Real,
+    pub(super) lambda: Real,
     tangent: Mat4,
 }
 

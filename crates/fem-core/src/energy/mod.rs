@@ -15,6 +15,7 @@
 //! | `linear`             | [`Linear`]           | finite; not rotation invariant             |
 
 mod corotational;
+mod hyperelastic;
 mod linear;
 mod neo_hookean;
 mod regions;
@@ -26,6 +27,7 @@ use std::fmt;
 use std::str::FromStr;
 
 pub use corotational::Corotational;
+pub use hyperelastic::Hyperelastic;
 pub use linear::Linear;
 pub use neo_hookean::NeoHookean;
 pub use regions::{ElementEnergies, EnergyOf};
@@ -179,7 +181,7 @@ pub fn svd_rotation_variant(f: &Mat2) -> (Mat2, Vec2, Mat2) {
 /// clamped to zero), in closed form: `A` itself when both eigenvalues are non-negative, zero
 /// when both are non-positive, else `l_max (A - l_min I) / (l_max - l_min)`.
 #[inline]
-fn project_psd2(p: Real, q: Real, r: Real) -> (Real, Real, Real) {
+pub(crate) fn project_psd2(p: Real, q: Real, r: Real) -> (Real, Real, Real) {
     let mean = 0.5 * (p + r);
     let half = 0.5 * (p - r);
     let radius = (half * half + q * q).sqrt();

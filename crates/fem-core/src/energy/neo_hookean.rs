@@ -25,8 +25,8 @@ use crate::math::{Mat2, Mat2Lanes, Mat4, Real, Vec2, cofactor, linear_map_matrix
 /// Compressible Neo-Hookean energy.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct NeoHookean {
-    mu: Real,
-    lambda: Real,
+    pub(super) mu: Real,
+    pub(super) lambda: Real,
 }
 
 impl NeoHookean {

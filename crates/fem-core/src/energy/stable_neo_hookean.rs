@@ -35,6 +35,9 @@ pub struct StableNeoHookean {
     alpha: Real,
     /// `psi` of the formula at `F = I`, subtracted so the rest state has zero energy.
     rest_offset: Real,
+    /// The material's own Lamé parameters `(mu, lambda)`, from which each dimension derives
+    /// its constants ([`super::Hyperelastic`]).
+    pub(crate) lame: (Real, Real),
 }
 
 impl StableNeoHookean {
@@ -60,6 +63,7 @@ impl StableNeoHookean {
             lambda,
             alpha,
             rest_offset,
+            lame: (lame.mu(), lame.lambda()),
         })
     }
 }

@@ -19,8 +19,8 @@ use crate::math::{Mat2, Mat4, Real, Vec2, ddot, linear_map_matrix, sym};
 /// Saint Venant-Kirchhoff energy.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Stvk {
-    mu: Real,
-    lambda: Real,
+    pub(super) mu: Real,
+    pub(super) lambda: Real,
 }
 
 impl Stvk {
