@@ -61,6 +61,7 @@ pub mod par;
 pub mod partition;
 pub mod polar;
 pub mod simd;
+pub mod simplex;
 pub mod stress;
 pub mod structured;
 

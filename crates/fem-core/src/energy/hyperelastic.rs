@@ -18,7 +18,9 @@
 //! `lambda' = lambda + mu - 2 mu / (D (D + 1))` and `alpha = 1 + mu' D / ((D + 1) lambda')`:
 //! `3/2 mu`, `lambda + 2/3 mu` in 2D, and the paper's `4/3 mu`, `lambda + 5/6 mu` in 3D. So
 //! the 2D and 3D Stable Neo-Hookean bodies agree at small strain but are not the same material
-//! at large strain (the other four energies are).
+//! at large strain (the other four energies are; co-rotational only while an inverted
+//! element's smaller in-plane stretch is below 1: past it the 3D polar rotation of
+//! `diag(F, 1)` flips the out-of-plane axis, where the 2D one stays in the plane).
 
 use super::{Corotational, Linear, NeoHookean, StableNeoHookean, Stvk};
 use crate::dim::{Dense, Dim};

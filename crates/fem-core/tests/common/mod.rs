@@ -4,6 +4,7 @@
 //! `fem-core` may not depend on it.
 #![allow(dead_code)]
 
+use fem_core::dim::{Mat3, Vec3};
 use fem_core::math::{Mat2, Real, Vec2};
 use fem_core::mesh::Mesh;
 
@@ -42,6 +43,43 @@ impl Rng {
                 return f;
             }
         }
+    }
+
+    /// The 3x3 analogue of [`Rng::deformation_gradient`]: `I + H` with entries of `H` in
+    /// `[-amp, amp]` (column-major draw order) and `det F >= min_det` (rejection sampling).
+    pub fn deformation_gradient3(&mut self, amp: Real, min_det: Real) -> Mat3 {
+        loop {
+            let mut f = Mat3::identity();
+            for k in 0..9 {
+                f[k] += self.uniform(-amp, amp);
+            }
+            if f.determinant() >= min_det {
+                return f;
+            }
+        }
+    }
+
+    /// A uniformly distributed unit vector (rejection sampling in the unit ball).
+    pub fn unit_vector3(&mut self) -> Vec3 {
+        loop {
+            let v = Vec3::new(
+                self.uniform(-1.0, 1.0),
+                self.uniform(-1.0, 1.0),
+                self.uniform(-1.0, 1.0),
+            );
+            let n = v.norm();
+            if n > 0.1 && n <= 1.0 {
+                return v / n;
+            }
+        }
+    }
+
+    /// A random proper rotation (`det = +1`): a uniform axis and an angle in `[0, 2 pi)`,
+    /// by Rodrigues' formula.
+    pub fn rotation3(&mut self) -> Mat3 {
+        let axis = nalgebra::Unit::new_unchecked(self.unit_vector3());
+        let angle = self.uniform(0.0, std::f64::consts::TAU);
+        nalgebra::Rotation3::from_axis_angle(&axis, angle).into_inner()
     }
 }
 
