@@ -85,6 +85,27 @@ pub enum SolverError {
         /// Smallest det F seen in the failed step.
         min_det_f: Real,
     },
+    /// A dimension-generic solver's step produced a non-finite position or velocity; the
+    /// state is left at the last good step.
+    #[error(
+        "step {step} (t = {time} s): vertex {vertex} became non-finite (x = {position}, v = {velocity}); {inverted} inverted elements, min det F = {min_det_f:.4e}"
+    )]
+    NonFiniteVertex {
+        /// The step that failed (1-based).
+        step: u64,
+        /// Simulated time at the start of that step, s.
+        time: Real,
+        /// The first bad vertex.
+        vertex: usize,
+        /// Its would-be position, `[x, y(, z)]` with 4 decimals in exponent form.
+        position: String,
+        /// Its would-be velocity, likewise.
+        velocity: String,
+        /// Inverted elements in the last force pass.
+        inverted: usize,
+        /// The smallest det F in the last force pass.
+        min_det_f: Real,
+    },
     /// Newton's method did not reach its tolerance (implicit or static solve).
     #[error(
         "step {step}: Newton did not converge in {iterations} iterations (residual {residual:.4e} N); lower dt, add load steps or raise max_iterations"

@@ -119,6 +119,7 @@ pub mod contact;
 mod error;
 mod kernel;
 pub mod model;
+pub mod nd;
 pub mod optim;
 pub mod rigid;
 pub mod steppers;

@@ -319,6 +319,7 @@ impl Solver for ExplicitStepper {
         contact: true,
         rigid_regions: true,
         averaged_pressure: true,
+        dims: 3,
         implicit: false,
         iterations: false,
         substeps: false,

@@ -446,6 +446,7 @@ impl Solver for ImplicitStepper {
         contact: true,
         rigid_regions: true,
         averaged_pressure: true,
+        dims: 3,
         implicit: true,
         iterations: false,
         substeps: false,

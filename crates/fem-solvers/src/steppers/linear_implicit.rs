@@ -373,6 +373,7 @@ impl Solver for LinearImplicitStepper {
         contact: true,
         rigid_regions: true,
         averaged_pressure: true,
+        dims: 2,
         implicit: true,
         iterations: false,
         substeps: false,

@@ -2398,6 +2398,7 @@ const POSITION_BASED: Capabilities = Capabilities {
     contact: true,
     rigid_regions: true,
     averaged_pressure: true,
+    dims: 2,
     implicit: false,
     iterations: true,
     substeps: true,

@@ -539,6 +539,7 @@ impl Solver for PdStepper {
         contact: false,
         rigid_regions: false,
         averaged_pressure: false,
+        dims: 2,
         implicit: true,
         iterations: true,
         substeps: false,

@@ -710,6 +710,7 @@ impl Solver for QuasiNewtonStepper {
         contact: true,
         rigid_regions: true,
         averaged_pressure: true,
+        dims: 2,
         implicit: true,
         iterations: true,
         substeps: false,

@@ -68,6 +68,9 @@ pub struct Capabilities {
     /// [`Model::set_averaged_pressure`]); a solver without it refuses such a model when it is
     /// built.
     pub averaged_pressure: bool,
+    /// The largest dimension it runs in: 2, or 3 when it has a dimension-generic path
+    /// ([`crate::nd`]) that steps tetrahedral meshes (without contact or rigid regions).
+    pub dims: u8,
     /// Implicit in time.
     pub implicit: bool,
     /// Has an iteration-count parameter `iterations`.
@@ -414,20 +417,21 @@ impl<'de> serde::Deserialize<'de> for SolverKind {
 pub fn capability_table() -> String {
     let yes = |b: bool| if b { "yes" } else { "no" };
     let mut out = String::from(
-        "| solver | summary | paper | contact | rigid regions | averaged pressure | implicit | iterations | substeps | factorisation | deterministic | clock | converges to |\n\
-         |---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+        "| solver | summary | paper | contact | rigid regions | averaged pressure | 3D | implicit | iterations | substeps | factorisation | deterministic | clock | converges to |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for kind in SolverKind::ALL {
         let c = kind.capabilities();
         let _ = writeln!(
             out,
-            "| `{}` | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            "| `{}` | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
             kind.name(),
             c.summary,
             yes(c.paper),
             yes(c.contact),
             yes(c.rigid_regions),
             yes(c.averaged_pressure),
+            yes(c.dims >= 3),
             yes(c.implicit),
             yes(c.iterations),
             yes(c.substeps),

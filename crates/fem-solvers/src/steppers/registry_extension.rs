@@ -73,6 +73,7 @@ impl Solver for TwoHalves {
         contact: true,
         rigid_regions: false,
         averaged_pressure: false,
+        dims: 2,
         implicit: false,
         iterations: false,
         substeps: false,

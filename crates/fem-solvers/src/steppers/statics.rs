@@ -493,6 +493,7 @@ impl Solver for StaticStepper {
         contact: true,
         rigid_regions: true,
         averaged_pressure: true,
+        dims: 3,
         implicit: true,
         iterations: false,
         substeps: false,

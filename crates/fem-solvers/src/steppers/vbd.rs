@@ -2195,6 +2195,7 @@ impl Solver for VbdStepper {
         contact: true,
         rigid_regions: true,
         averaged_pressure: true,
+        dims: 2,
         implicit: true,
         iterations: true,
         substeps: true,

@@ -15,6 +15,7 @@ mod grab;
 mod implicit;
 mod integrator;
 mod linear_implicit;
+mod nd;
 mod position_based;
 mod pressure;
 mod projective;
