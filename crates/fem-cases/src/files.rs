@@ -38,6 +38,30 @@ pub fn load_case_or_file(arg: &str, overrides: &[String]) -> Result<LoadedScene,
     }
 }
 
+/// A built-in case of either dimension (`case-a`, ..., `case-a-3d`) or a scene file: its
+/// `dim` key decides which ([`fem_scene::solid::AnyScene`]).
+pub fn load_any(arg: &str, overrides: &[String]) -> Result<fem_scene::solid::AnyScene, SceneError> {
+    use fem_scene::solid::{AnyScene, case_text_3d, load_case3, parse_any};
+    if case_text_3d(arg).is_some() {
+        return Ok(AnyScene::Three(Box::new(load_case3(arg, overrides)?)));
+    }
+    if case_text(arg).is_none() && (Path::new(arg).exists() || arg.ends_with(".toml")) {
+        let path = Path::new(arg);
+        let text = std::fs::read_to_string(path).map_err(|e| {
+            SceneError::Io(format!(
+                "{}: cannot read the scene file: {e}",
+                path.display()
+            ))
+        })?;
+        let base = path
+            .parent()
+            .map(Path::to_path_buf)
+            .unwrap_or_else(|| PathBuf::from("."));
+        return parse_any(&text, &path.display().to_string(), &base, overrides);
+    }
+    Ok(AnyScene::Two(Box::new(load_case_or_file(arg, overrides)?)))
+}
+
 /// Mesh and model files read from disk, relative paths against a base directory (the scene
 /// file's).
 #[derive(Clone, Debug)]

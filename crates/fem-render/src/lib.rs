@@ -25,6 +25,7 @@ pub mod gif;
 mod image;
 pub mod pressure;
 mod raster;
+pub mod surface;
 mod text;
 pub mod vtk;
 

@@ -51,6 +51,8 @@ pub enum DataArray<'a> {
     /// One non-negative integer per point or cell, e.g. a region index (written as `UInt32`
     /// with one component; read back as `f64` like every array).
     Tags(&'a [u32]),
+    /// One 3-vector per point or cell (a 3D body's displacement).
+    Vectors3(&'a [[f64; 3]]),
 }
 
 impl DataArray<'_> {
@@ -60,6 +62,7 @@ impl DataArray<'_> {
             DataArray::Scalars(v) => v.len(),
             DataArray::Vectors(v) => v.len(),
             DataArray::Tags(v) => v.len(),
+            DataArray::Vectors3(v) => v.len(),
         }
     }
 
@@ -72,7 +75,7 @@ impl DataArray<'_> {
     pub fn components(&self) -> usize {
         match self {
             DataArray::Scalars(_) | DataArray::Tags(_) => 1,
-            DataArray::Vectors(_) => 3,
+            DataArray::Vectors(_) | DataArray::Vectors3(_) => 3,
         }
     }
 }
@@ -172,6 +175,10 @@ fn check_arrays(kind: &str, what: &str, arrays: &[(&str, DataArray<'_>)], n: usi
                 .position(|x| !(x[0].is_finite() && x[1].is_finite()))
                 .map(|j| (j, format!("[{}, {}]", v[j][0], v[j][1]))),
             DataArray::Tags(_) => None,
+            DataArray::Vectors3(v) => v
+                .iter()
+                .position(|x| !x.iter().all(|c| c.is_finite()))
+                .map(|j| (j, format!("{:?}", v[j]))),
         };
         if let Some((j, value)) = bad {
             return Err(RenderError::Input(format!(
@@ -258,7 +265,7 @@ fn push_section(out: &mut String, tag: &str, arrays: &[(&str, DataArray<'_>)]) {
         .find(|(_, a)| matches!(a, DataArray::Scalars(_)));
     let vectors = arrays
         .iter()
-        .find(|(_, a)| matches!(a, DataArray::Vectors(_)));
+        .find(|(_, a)| matches!(a, DataArray::Vectors(_) | DataArray::Vectors3(_)));
     if let Some((name, _)) = scalars {
         out.push_str(" Scalars=\"");
         out.push_str(name);
@@ -274,7 +281,7 @@ fn push_section(out: &mut String, tag: &str, arrays: &[(&str, DataArray<'_>)]) {
         out.push_str("        <DataArray type=\"");
         out.push_str(match array {
             DataArray::Tags(_) => "UInt32",
-            DataArray::Scalars(_) | DataArray::Vectors(_) => "Float64",
+            DataArray::Scalars(_) | DataArray::Vectors(_) | DataArray::Vectors3(_) => "Float64",
         });
         out.push_str("\" Name=\"");
         out.push_str(name);
@@ -299,6 +306,16 @@ fn push_section(out: &mut String, tag: &str, arrays: &[(&str, DataArray<'_>)]) {
                     out.push(' ');
                     push_f64(out, v[1]);
                     out.push_str(" 0\n");
+                }
+            }
+            DataArray::Vectors3(values) => {
+                for v in *values {
+                    push_f64(out, v[0]);
+                    out.push(' ');
+                    push_f64(out, v[1]);
+                    out.push(' ');
+                    push_f64(out, v[2]);
+                    out.push('\n');
                 }
             }
             DataArray::Tags(values) => {
@@ -501,6 +518,15 @@ impl PvdWriter {
     /// `time` must be finite and not smaller than the previous frame's time. On error nothing is
     /// recorded (and the frame can be added again).
     pub fn add(&mut self, time: f64, frame: &VtkFrame<'_>) -> Result<PathBuf> {
+        self.add_with(time, || vtu_string(frame))
+    }
+
+    /// [`PvdWriter::add`] for a frame of a tetrahedral mesh ([`solid_vtu_string`]).
+    pub fn add_solid(&mut self, time: f64, frame: &SolidFrame<'_>) -> Result<PathBuf> {
+        self.add_with(time, || solid_vtu_string(frame))
+    }
+
+    fn add_with(&mut self, time: f64, text: impl FnOnce() -> Result<String>) -> Result<PathBuf> {
         let index = self.entries.len();
         if !time.is_finite() {
             return Err(RenderError::Input(format!(
@@ -514,7 +540,7 @@ impl PvdWriter {
         }
         let name = format!("{}_{index:06}.vtu", self.stem);
         let path = self.dir.join(&name);
-        let text = vtu_string(frame).map_err(|e| match e {
+        let text = text().map_err(|e| match e {
             RenderError::Input(m) => {
                 RenderError::Input(format!("frame {index} (time {time}): {m}"))
             }
@@ -959,4 +985,112 @@ pub fn read_pvd(path: &Path) -> Result<Vec<(f64, PathBuf)>> {
         .into_iter()
         .map(|(t, file)| (t, dir.join(file)))
         .collect())
+}
+
+/// The VTK cell type of a linear tetrahedron.
+pub const VTK_TETRA: u8 = 10;
+
+/// One frame of a 3D tetrahedral mesh with the data to attach to it.
+#[derive(Debug, Clone, Default)]
+pub struct SolidFrame<'a> {
+    /// Point positions.
+    pub positions: &'a [[f64; 3]],
+    /// Tetrahedra as indices into `positions`.
+    pub tetrahedra: &'a [[usize; 4]],
+    /// Arrays with one entry per point, e.g. `("displacement", DataArray::Vectors3(..))`.
+    pub point_data: Vec<(&'a str, DataArray<'a>)>,
+    /// Arrays with one entry per tetrahedron, e.g. `("von_mises", DataArray::Scalars(..))`.
+    pub cell_data: Vec<(&'a str, DataArray<'a>)>,
+}
+
+/// The `.vtu` text of one frame of a tetrahedral mesh (cell type [`VTK_TETRA`]); fails as
+/// [`vtu_string`] does.
+pub fn solid_vtu_string(frame: &SolidFrame<'_>) -> Result<String> {
+    let np = frame.positions.len();
+    let nc = frame.tetrahedra.len();
+    if let Some(i) = frame
+        .positions
+        .iter()
+        .position(|p| !p.iter().all(|c| c.is_finite()))
+    {
+        return Err(RenderError::Input(format!(
+            "position {i} is not finite: {:?}",
+            frame.positions[i]
+        )));
+    }
+    for (t, tet) in frame.tetrahedra.iter().enumerate() {
+        if let Some(&v) = tet.iter().find(|&&v| v >= np) {
+            return Err(RenderError::Input(format!(
+                "tetrahedron {t} refers to point {v}, but there are {np} points"
+            )));
+        }
+    }
+    check_arrays("point data", "points", &frame.point_data, np)?;
+    check_arrays("cell data", "cells", &frame.cell_data, nc)?;
+    let mut out = String::with_capacity(1024 + 80 * np + 60 * nc);
+    out.push_str("<?xml version=\"1.0\"?>\n");
+    out.push_str(
+        "<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" byte_order=\"LittleEndian\" \
+         header_type=\"UInt64\">\n",
+    );
+    out.push_str("  <UnstructuredGrid>\n");
+    out.push_str("    <Piece NumberOfPoints=\"");
+    push_usize(&mut out, np);
+    out.push_str("\" NumberOfCells=\"");
+    push_usize(&mut out, nc);
+    out.push_str("\">\n");
+    push_section(&mut out, "PointData", &frame.point_data);
+    push_section(&mut out, "CellData", &frame.cell_data);
+    out.push_str("      <Points>\n");
+    out.push_str(
+        "        <DataArray type=\"Float64\" Name=\"Points\" NumberOfComponents=\"3\" \
+         format=\"ascii\">\n",
+    );
+    for p in frame.positions {
+        push_f64(&mut out, p[0]);
+        out.push(' ');
+        push_f64(&mut out, p[1]);
+        out.push(' ');
+        push_f64(&mut out, p[2]);
+        out.push('\n');
+    }
+    out.push_str("        </DataArray>\n");
+    out.push_str("      </Points>\n");
+    out.push_str("      <Cells>\n");
+    out.push_str("        <DataArray type=\"Int64\" Name=\"connectivity\" format=\"ascii\">\n");
+    for t in frame.tetrahedra {
+        for (k, &v) in t.iter().enumerate() {
+            if k > 0 {
+                out.push(' ');
+            }
+            push_usize(&mut out, v);
+        }
+        out.push('\n');
+    }
+    out.push_str("        </DataArray>\n");
+    out.push_str("        <DataArray type=\"Int64\" Name=\"offsets\" format=\"ascii\">\n");
+    for c in 0..nc {
+        push_usize(&mut out, 4 * (c + 1));
+        out.push(if c % 12 == 11 || c + 1 == nc {
+            '\n'
+        } else {
+            ' '
+        });
+    }
+    out.push_str("        </DataArray>\n");
+    out.push_str("        <DataArray type=\"UInt8\" Name=\"types\" format=\"ascii\">\n");
+    for c in 0..nc {
+        out.push_str("10");
+        out.push(if c % 24 == 23 || c + 1 == nc {
+            '\n'
+        } else {
+            ' '
+        });
+    }
+    out.push_str("        </DataArray>\n");
+    out.push_str("      </Cells>\n");
+    out.push_str("    </Piece>\n");
+    out.push_str("  </UnstructuredGrid>\n");
+    out.push_str("</VTKFile>\n");
+    Ok(out)
 }

@@ -41,6 +41,7 @@ pub mod region_stats;
 pub mod run;
 pub mod scales;
 pub mod scene;
+pub mod solid;
 mod solver_spec;
 
 pub use error::SceneError;

@@ -561,6 +561,30 @@ pub fn parse_scene(
     base_dir: &Path,
     overrides: &[String],
 ) -> Result<LoadedScene, SceneError> {
+    let mut table = parse_table(text, origin, overrides)?;
+    if dim_of(&table, origin)? == 3 {
+        return Err(SceneError::Scene(format!(
+            "{origin}: dim = 3: a 3D scene runs with `fem2d run` (docs/scenes.md, 3D scenes); this tool takes 2D scenes"
+        )));
+    }
+    table.remove("dim");
+    let scene: Scene = deserialize_table(table, origin)?;
+    let loaded = LoadedScene {
+        scene,
+        origin: origin.to_owned(),
+        base_dir: base_dir.to_path_buf(),
+    };
+    loaded.validate()?;
+    Ok(loaded)
+}
+
+/// The TOML table of a scene's text (from `origin`; a leading UTF-8 byte-order mark is
+/// skipped) with `overrides` (`key=value`) applied.
+pub fn parse_table(
+    text: &str,
+    origin: &str,
+    overrides: &[String],
+) -> Result<toml::Table, SceneError> {
     // A UTF-8 byte-order mark, which some editors write first, is not part of the TOML.
     let text = text.strip_prefix('\u{feff}').unwrap_or(text);
     let mut table: toml::Table = text.parse().map_err(|e: toml::de::Error| {
@@ -579,7 +603,30 @@ pub fn parse_scene(
     for o in overrides {
         apply_override(&mut table, o).map_err(|m| SceneError::Scene(format!("{origin}: {m}")))?;
     }
-    let scene: Scene = serde_path_to_error::deserialize(toml::Value::Table(table)).map_err(
+    Ok(table)
+}
+
+/// The scene's dimension: its `dim` key, 2 (the default) or 3.
+pub fn dim_of(table: &toml::Table, origin: &str) -> Result<u8, SceneError> {
+    match table.get("dim") {
+        None => Ok(2),
+        Some(v) => match v.as_integer() {
+            Some(2) => Ok(2),
+            Some(3) => Ok(3),
+            _ => Err(SceneError::Scene(format!(
+                "{origin}: dim = {v}: must be 2 or 3"
+            ))),
+        },
+    }
+}
+
+/// Deserialize a scene table (2D or 3D), with errors naming `origin` and the field's path
+/// (`pinned.0.max`, `solver.iterations`).
+pub(crate) fn deserialize_table<T: serde::de::DeserializeOwned>(
+    table: toml::Table,
+    origin: &str,
+) -> Result<T, SceneError> {
+    serde_path_to_error::deserialize(toml::Value::Table(table)).map_err(
         |e: serde_path_to_error::Error<toml::de::Error>| {
             // serde writes array elements as `pinned[0].max`; --set and the checks below use
             // `pinned.0.max`: one spelling everywhere.
@@ -601,17 +648,10 @@ pub fn parse_scene(
                 SceneError::Scene(format!("{origin}: {path}: {inner}"))
             }
         },
-    )?;
-    let loaded = LoadedScene {
-        scene,
-        origin: origin.to_owned(),
-        base_dir: base_dir.to_path_buf(),
-    };
-    loaded.validate()?;
-    Ok(loaded)
+    )
 }
 
-fn line_col(text: &str, offset: usize) -> (usize, usize) {
+pub(crate) fn line_col(text: &str, offset: usize) -> (usize, usize) {
     let before = &text[..offset.min(text.len())];
     let line = before.matches('\n').count() + 1;
     let col = before.len() - before.rfind('\n').map_or(0, |i| i + 1) + 1;

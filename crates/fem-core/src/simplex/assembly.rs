@@ -111,7 +111,11 @@ pub fn populate_forces<D: Dim, E: Hyperelastic<D>>(
     });
     ForceReport {
         min_det_f: scratch.det.iter().copied().fold(Real::INFINITY, Real::min),
-        inverted: scratch.det.iter().filter(|&&d| d <= 0.0 || d.is_nan()).count(),
+        inverted: scratch
+            .det
+            .iter()
+            .filter(|&&d| d <= 0.0 || d.is_nan())
+            .count(),
     }
 }
 

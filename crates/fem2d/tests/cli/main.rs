@@ -10,3 +10,4 @@ mod outputs;
 mod pictures;
 mod report;
 mod run;
+mod solid;
