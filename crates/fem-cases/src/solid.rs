@@ -167,6 +167,19 @@ pub fn surface_picture(
     width: u32,
     height: u32,
 ) -> Result<Image, SceneError> {
+    surface_picture_in(result, frame, view, title, (width, height), None)
+}
+
+/// [`surface_picture`] with a colour range in kPa (`None`: the frame's own) and the world
+/// window fitted to the frame.
+pub fn surface_picture_in(
+    result: &RunResult3,
+    frame: &Frame3,
+    view: View,
+    title: &str,
+    (width, height): (u32, u32),
+    range_kpa: Option<(f64, f64)>,
+) -> Result<Image, SceneError> {
     let faces: Vec<[usize; 3]> = result.surface.iter().map(|(f, _)| *f).collect();
     let projected = project(&frame.x, &faces, view);
     let values: Vec<f64> = projected
@@ -180,7 +193,67 @@ pub fn surface_picture(
     };
     let mut st = style(FieldKind::VonMises, title, width, height);
     st.rest_outline = false;
+    if range_kpa.is_some() {
+        st.range = range_kpa;
+    }
     let rendered =
         fem_render::frame::render(&[panel], &st).map_err(|e| SceneError::Io(e.to_string()))?;
     Ok(rendered.image)
+}
+
+/// The report's 3D figure: `case-a-3d` (explicit, StVK) at case A's Table 1 times 0.5, 1.2 and
+/// 2.0 s, side by side on one von Mises scale, from [`View::OBLIQUE`]. Returns the picture,
+/// the tip deflection at each time (m) and the run's element-steps per second.
+pub fn case_a_3d_figure() -> Result<(Image, Vec<f64>, f64), SceneError> {
+    let scene = fem_scene::solid::load_case3("case-a-3d", &[])?;
+    let clock = SystemClock::new();
+    let result = run3(
+        &scene,
+        &clock,
+        fem_core::par::current_num_threads(),
+        true,
+        None,
+    )?;
+    if let Some(m) = &result.summary.blow_up_message {
+        return Err(SceneError::Scene(format!("case-a-3d blew up: {m}")));
+    }
+    let times = [0.5, 1.2, 2.0];
+    let frames: Vec<&Frame3> = times
+        .iter()
+        .map(|&t| {
+            result
+                .frames
+                .iter()
+                .min_by(|a, b| (a.time - t).abs().total_cmp(&(b.time - t).abs()))
+                .expect("the run recorded frames")
+        })
+        .collect();
+    let top = frames
+        .iter()
+        .flat_map(|f| f.von_mises.iter().copied())
+        .fold(0.0, f64::max)
+        * 1e-3;
+    let tip = result.summary.probes.first().map(|p| p.vertex);
+    let mut panels = Vec::new();
+    let mut tips = Vec::new();
+    for (k, f) in frames.iter().enumerate() {
+        let title = format!(
+            "{}t = {:.1} s",
+            if k == 0 { "Case A in 3D: " } else { "" },
+            f.time
+        );
+        panels.push(surface_picture_in(
+            &result,
+            f,
+            View::OBLIQUE,
+            &title,
+            (360, 220),
+            Some((0.0, top.max(1e-12))),
+        )?);
+        if let Some(v) = tip {
+            tips.push(f.x[v][1] - result.rest[v][1]);
+        }
+    }
+    let image = Image::hstack(&panels, 8, [255, 255, 255, 255]);
+    Ok((image, tips, result.summary.element_steps_per_second))
 }

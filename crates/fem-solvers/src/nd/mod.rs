@@ -21,12 +21,21 @@ mod explicit;
 mod implicit;
 mod model;
 mod newton;
+mod pd_system;
+mod position_based;
+mod projective;
+mod quasi_newton;
 mod statics;
+mod vbd;
 
 pub use explicit::NdExplicit;
 pub use implicit::NdImplicit;
 pub use model::{NdModel, NdRegion, NdState};
+pub use position_based::{NdPbd, NdXpbd};
+pub use projective::{NdPd, corotational_projections};
+pub use quasi_newton::NdQuasiNewton;
 pub use statics::NdStatic;
+pub use vbd::NdVbd;
 
 use fem_core::dim::{Dense, Dim};
 use fem_core::energy::Hyperelastic;
@@ -54,6 +63,16 @@ pub enum AnyNdStepper<D: Dim> {
     Implicit(NdImplicit<D>),
     /// Quasi-static equilibrium by Newton.
     Static(NdStatic<D>),
+    /// Energy-based PBD.
+    Pbd(NdPbd<D>),
+    /// Energy-based XPBD.
+    Xpbd(NdXpbd<D>),
+    /// Vertex Block Descent.
+    Vbd(NdVbd<D>),
+    /// Projective Dynamics (co-rotational energy).
+    Pd(NdPd<D>),
+    /// Implicit Euler by L-BFGS with the Projective Dynamics matrix.
+    QuasiNewton(NdQuasiNewton<D>),
 }
 
 impl<D: Dim, E: Hyperelastic<D>> NdStepper<D, E> for AnyNdStepper<D> {
@@ -66,6 +85,11 @@ impl<D: Dim, E: Hyperelastic<D>> NdStepper<D, E> for AnyNdStepper<D> {
             AnyNdStepper::Explicit(s) => s.step(model, state),
             AnyNdStepper::Implicit(s) => s.step(model, state),
             AnyNdStepper::Static(s) => s.step(model, state),
+            AnyNdStepper::Pbd(s) => s.step(model, state),
+            AnyNdStepper::Xpbd(s) => s.step(model, state),
+            AnyNdStepper::Vbd(s) => s.step(model, state),
+            AnyNdStepper::Pd(s) => s.step(model, state),
+            AnyNdStepper::QuasiNewton(s) => s.step(model, state),
         }
     }
 }
@@ -73,7 +97,7 @@ impl<D: Dim, E: Hyperelastic<D>> NdStepper<D, E> for AnyNdStepper<D> {
 /// Build the dimension-generic stepper of `params` for `model`, validating the parameters
 /// under `prefix` (the scene's `solver`). A solver without a dimension-generic path, or an
 /// option its path does not support, is a one-line error.
-pub fn build<D: Dim, E: Hyperelastic<D>>(
+pub fn build<D: Dim, E: Hyperelastic<D> + 'static>(
     model: &NdModel<D, E>,
     params: &SolverParams,
     prefix: &str,
@@ -93,6 +117,13 @@ pub fn build<D: Dim, E: Hyperelastic<D>>(
             Ok(AnyNdStepper::Implicit(NdImplicit::new(model, *p, prefix)?))
         }
         SolverParams::Static(p) => Ok(AnyNdStepper::Static(NdStatic::new(model, *p, prefix)?)),
+        SolverParams::Pbd(p) => Ok(AnyNdStepper::Pbd(NdPbd::new(model, *p, prefix)?)),
+        SolverParams::Xpbd(p) => Ok(AnyNdStepper::Xpbd(NdXpbd::new(model, *p, prefix)?)),
+        SolverParams::Vbd(p) => Ok(AnyNdStepper::Vbd(NdVbd::new(model, *p, prefix)?)),
+        SolverParams::Pd(p) => Ok(AnyNdStepper::Pd(NdPd::new(model, *p, prefix)?)),
+        SolverParams::QuasiNewton(p) => Ok(AnyNdStepper::QuasiNewton(NdQuasiNewton::new(
+            model, *p, prefix,
+        )?)),
         _ => refuse(format!(
             "has no {} path yet (solvers with one: {})",
             D::NAME,

@@ -109,7 +109,7 @@ impl VertexColouring {
     /// Colour the `nv` vertices for which `free` is true, in index order, each with the
     /// smallest colour of no vertex among its `neighbours(v)` (a symmetric relation; `v`
     /// itself may be listed).
-    fn greedy_by<I: Iterator<Item = u32>>(
+    pub(crate) fn greedy_by<I: Iterator<Item = u32>>(
         nv: usize,
         free: &[bool],
         neighbours: impl Fn(usize) -> I,

@@ -448,9 +448,10 @@ impl XpbdParams {
     }
 }
 
-/// The projection rule with its per-substep constants.
+/// The projection rule with its per-substep constants (shared with the dimension-generic
+/// path, [`crate::nd`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
-enum Rule {
+pub(crate) enum Rule {
     Pbd { stiffness: Real },
     Consistent { alpha_tilde: Real },
     Literal { alpha_tilde: Real },
@@ -521,7 +522,7 @@ fn project_one<E: Energy>(
 /// rigid body counts with its generalised inverse mass); updates the multiplier. `Err` (with
 /// the residual) when the constraint has no direction to move in (`s <= 0`).
 #[inline(always)]
-fn multiplier(
+pub(crate) fn multiplier(
     rule: Rule,
     area: Real,
     psi: Real,
@@ -2398,7 +2399,7 @@ const POSITION_BASED: Capabilities = Capabilities {
     contact: true,
     rigid_regions: true,
     averaged_pressure: true,
-    dims: 2,
+    dims: 3,
     implicit: false,
     iterations: true,
     substeps: true,

@@ -534,12 +534,12 @@ impl Solver for PdStepper {
     const NAME: &'static str = "pd";
     const CAPABILITIES: Capabilities = Capabilities {
         title: "Projective Dynamics",
-        summary: "Projective Dynamics (Bouaziz et al. 2014), co-rotational energy only: local projections per triangle, one global matrix factorised once",
+        summary: "Projective Dynamics (Bouaziz et al. 2014), co-rotational energy only: local projections per element, one global matrix factorised once",
         paper: false,
         contact: false,
         rigid_regions: false,
         averaged_pressure: false,
-        dims: 2,
+        dims: 3,
         implicit: true,
         iterations: true,
         substeps: false,

@@ -240,7 +240,7 @@ pub struct QuasiNewtonStepper {
 
 /// L-BFGS's pairs: a ring of the last `(s, y, 1 / (s . y))`, oldest first from `head`.
 #[derive(Debug)]
-struct Lbfgs {
+pub(crate) struct Lbfgs {
     s: Vec<Vec<Real>>,
     y: Vec<Vec<Real>>,
     rho: Vec<Real>,
@@ -251,7 +251,7 @@ struct Lbfgs {
 
 impl Lbfgs {
     /// Room for `history` pairs of vectors of length `m`.
-    fn new(history: usize, m: usize) -> Self {
+    pub(crate) fn new(history: usize, m: usize) -> Self {
         Lbfgs {
             s: vec![vec![0.0; m]; history],
             y: vec![vec![0.0; m]; history],
@@ -263,14 +263,14 @@ impl Lbfgs {
     }
 
     /// Forget every pair.
-    fn clear(&mut self) {
+    pub(crate) fn clear(&mut self) {
         self.pairs = 0;
         self.head = 0;
     }
 
     /// `d = -H g` by the two-loop recursion, `h0` applying the initial inverse Hessian in
     /// place.
-    fn direction(&mut self, g: &[Real], d: &mut [Real], h0: impl FnOnce(&mut [Real])) {
+    pub(crate) fn direction(&mut self, g: &[Real], d: &mut [Real], h0: impl FnOnce(&mut [Real])) {
         let hist = self.s.len();
         for (d, g) in d.iter_mut().zip(g) {
             *d = -g;
@@ -309,7 +309,7 @@ impl Lbfgs {
     }
 
     /// Keep the pair `(s, g_new - g)` if its curvature `s . y` is positive (beyond round-off).
-    fn remember(&mut self, s: &[Real], g_new: &[Real], g: &[Real]) {
+    pub(crate) fn remember(&mut self, s: &[Real], g_new: &[Real], g: &[Real]) {
         if self.s.is_empty() {
             return;
         }
@@ -331,7 +331,7 @@ impl Lbfgs {
     }
 }
 
-fn dot(a: &[Real], b: &[Real]) -> Real {
+pub(crate) fn dot(a: &[Real], b: &[Real]) -> Real {
     a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
@@ -710,7 +710,7 @@ impl Solver for QuasiNewtonStepper {
         contact: true,
         rigid_regions: true,
         averaged_pressure: true,
-        dims: 2,
+        dims: 3,
         implicit: true,
         iterations: true,
         substeps: false,
@@ -739,7 +739,7 @@ impl Solver for QuasiNewtonStepper {
 
 /// The start of a step whose gradient or force scale overflowed: an error (it would read as
 /// anything from converged to blown up).
-pub(super) fn overflowing_start(gnorm: Real, scale: Real) -> Result<(), SolverError> {
+pub(crate) fn overflowing_start(gnorm: Real, scale: Real) -> Result<(), SolverError> {
     if gnorm.is_finite() && scale.is_finite() {
         return Ok(());
     }

@@ -623,7 +623,7 @@ fn deformation_gradient_with(el: &PackedElement, x: &[Vec2], corner: u8, p: Vec2
 
 /// The symmetric 2x2 matrix `[[a, b], [b, c]]` with negative eigenvalues set to zero.
 #[inline(always)]
-fn psd2(a: Real, b: Real, c: Real) -> (Real, Real, Real) {
+pub(crate) fn psd2(a: Real, b: Real, c: Real) -> (Real, Real, Real) {
     // Positive semidefinite already (the common case): no square root.
     if a >= 0.0 && c >= 0.0 && a * c >= b * b {
         return (a, b, c);
@@ -2190,12 +2190,12 @@ impl Solver for VbdStepper {
     const NAME: &'static str = "vbd";
     const CAPABILITIES: Capabilities = Capabilities {
         title: "VBD",
-        summary: "Vertex Block Descent: Gauss-Seidel over vertices on implicit Euler's incremental potential, a 2x2 Newton step each, vertex colouring",
+        summary: "Vertex Block Descent: Gauss-Seidel over vertices on implicit Euler's incremental potential, a 2x2 (3D: 3x3) Newton step each, vertex colouring",
         paper: false,
         contact: true,
         rigid_regions: true,
         averaged_pressure: true,
-        dims: 2,
+        dims: 3,
         implicit: true,
         iterations: true,
         substeps: true,

@@ -65,12 +65,13 @@ fn report_has_every_section_and_picture() {
         images_in(&html),
         "an image is not embedded"
     );
-    // 5 figures + 2 curve charts + the stability map + 5 frame-budget charts (case A's three
-    // energies, case D's and its windows) + 4 animations.
-    assert_eq!(images_in(&html), 17);
+    // 6 figures (case A in 2D and in 3D) + 2 curve charts + the stability map + 5 frame-budget
+    // charts (case A's three energies, case D's and its windows) + 4 animations.
+    assert_eq!(images_in(&html), 18);
     for file in [
         "figure-1-mesh-pipeline.png",
         "figure-2-case-a.png",
+        "figure-2-case-a-3d.png",
         "figure-3-case-b.png",
         "figure-4-case-c.png",
         "figure-5-case-d.png",
