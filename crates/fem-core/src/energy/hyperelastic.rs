@@ -181,8 +181,8 @@ impl<D: Dim> Hyperelastic<D> for StableNeoHookean {
         *f * (a * (1.0 - 1.0 / (ic + 1.0))) + D::cofactor(f) * (b * (D::det(f) - alpha))
     }
 
-    /// `dP = mu' (1 - 1/(I_C+1)) dF + 2 mu' (F : dF) / (I_C+1)^2 F + lambda' (cof F : dF) cof F
-    /// + lambda' (J - alpha) dcof(F)[dF]`.
+    /// `dP = mu' (1 - 1/(I_C+1)) dF + 2 mu' (F : dF) / (I_C+1)^2 F`
+    /// `+ lambda' (cof F : dF) cof F + lambda' (J - alpha) dcof(F)[dF]`.
     fn piola_tangent(&self, f: &D::Matrix) -> D::Tangent {
         let (a, b, alpha, _) = stable_constants::<D>(self.lame.0, self.lame.1);
         let ic = f.norm2();
