@@ -214,6 +214,11 @@ pub trait Dim: sealed::Sealed + Copy + Clone + Debug + Default + Send + Sync + '
     /// The derivative of [`Dim::polar_rotation`] at `f` along `df` (zero in a degenerate
     /// direction, where the rotation is not unique).
     fn drotation(f: &Self::Matrix, df: &Self::Matrix) -> Self::Matrix;
+    /// [`Dim::drotation`] at `f` for every direction at once, as a tangent on `vec(dF)` (in 3D
+    /// one SVD for all nine directions).
+    fn drotation_tangent(f: &Self::Matrix) -> Self::Tangent {
+        Self::linear_map(|df| Self::drotation(f, df))
+    }
     /// The PSD projection of the tangent `d` of an **isotropic** energy at `f`, through the
     /// analytic eigenbasis `U e_a e_b^T V^T` of the rotation-variant SVD (Smith, de Goes and
     /// Kim 2019): scaling directions in one `D x D` block, each twist/flip pair in a 2x2 block.
@@ -443,19 +448,12 @@ impl Dim for D3 {
     /// unique; it contributes zero.
     fn drotation(f: &Mat3, df: &Mat3) -> Mat3 {
         let (u, s, v) = Self::svd_rotation_variant(f);
-        let m = u.transpose() * df * v;
-        let mut w = Mat3::zeros();
-        for (i, j) in [(0, 1), (0, 2), (1, 2)] {
-            let denom = s[i] + s[j];
-            let x = if denom.abs() > Real::EPSILON * s[0].abs() {
-                (m[(i, j)] - m[(j, i)]) / denom
-            } else {
-                0.0
-            };
-            w[(i, j)] = x;
-            w[(j, i)] = -x;
-        }
-        u * w * v.transpose()
+        drotation_from_svd(&u, &s, &v, df)
+    }
+
+    fn drotation_tangent(f: &Mat3) -> Mat9 {
+        let (u, s, v) = Self::svd_rotation_variant(f);
+        Self::linear_map(|df| drotation_from_svd(&u, &s, &v, df))
     }
 
     fn project_psd_isotropic(f: &Mat3, d: &Mat9) -> Mat9 {
@@ -547,9 +545,34 @@ impl Dim for D3 {
     }
 }
 
+/// `dR = U W V^T` for `F = U diag(s) V^T` (see [`Dim::drotation`] of [`D3`]).
+fn drotation_from_svd(u: &Mat3, s: &Vec3, v: &Mat3, df: &Mat3) -> Mat3 {
+    let m = u.transpose() * df * v;
+    let mut w = Mat3::zeros();
+    for (i, j) in [(0, 1), (0, 2), (1, 2)] {
+        let denom = s[i] + s[j];
+        let x = if denom.abs() > Real::EPSILON * s[0].abs() {
+            (m[(i, j)] - m[(j, i)]) / denom
+        } else {
+            0.0
+        };
+        w[(i, j)] = x;
+        w[(j, i)] = -x;
+    }
+    u * w * v.transpose()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn drotation_tangent_is_drotation_in_every_direction() {
+        let f = sample3();
+        let t = D3::drotation_tangent(&f);
+        let df = Mat3::new(0.3, -0.2, 0.5, 0.1, 0.7, -0.4, 0.2, 0.3, -0.6);
+        assert!((D3::apply(&t, &df) - D3::drotation(&f, &df)).norm() < 1e-14);
+    }
 
     fn sample3() -> Mat3 {
         Mat3::new(1.2, 0.3, -0.1, 0.2, 0.9, 0.25, -0.15, 0.1, 1.1)

@@ -143,8 +143,10 @@ impl<D: Dim> Hyperelastic<D> for Corotational {
         let r = D::polar_rotation(f);
         let rt = D::transpose(&r);
         let t = D::trace(&(rt * *f)) - dim_real::<D>();
+        // dR/dF once (one SVD in 3D), then applied to each direction.
+        let dr_df = D::drotation_tangent(f);
         D::linear_map(|df| {
-            let dr = D::drotation(f, df);
+            let dr = D::apply(&dr_df, df);
             (*df - dr) * (2.0 * self.mu)
                 + r * (self.lambda * D::trace(&(rt * *df)))
                 + dr * (self.lambda * t)
