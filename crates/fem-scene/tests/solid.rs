@@ -157,3 +157,12 @@ fn a_2d_tool_refuses_a_3d_scene_and_parse_any_dispatches() {
     // `dim = 2` is the default, written or not.
     assert!(parse_scene(&format!("dim = 2\n{two}"), "s.toml", Path::new("."), &[]).is_ok());
 }
+
+/// The compiled-in `case-a-3d` is the fixture file `fixtures/scenes/case-a-3d.toml`.
+#[test]
+fn the_builtin_3d_case_is_its_fixture_file() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/scenes");
+    let text = std::fs::read_to_string(dir.join("case-a-3d.toml")).unwrap();
+    let from_file = parse_scene3(&text, "case-a-3d.toml", &dir, &[]).unwrap();
+    assert_eq!(from_file.scene, load_case3("case-a-3d", &[]).unwrap().scene);
+}

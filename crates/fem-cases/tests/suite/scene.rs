@@ -781,6 +781,21 @@ fn docs_example_scenes_parse_and_run() {
             continue;
         }
         examples += 1;
+        if text.contains("\ndim = 3\n") {
+            // A 3D example: parsed as one and run for a few steps.
+            let scene = fem_scene::solid::parse_scene3(
+                text,
+                "docs/scenes.md",
+                Path::new("."),
+                &["solver.steps=40".into()],
+            )
+            .unwrap_or_else(|e| panic!("{e}\n{text}"));
+            let r = fem_scene::solid::run3(&scene, &fem_scene::run::NoClock, 1, false, None)
+                .unwrap_or_else(|e| panic!("{e}\n{text}"));
+            assert!(!r.summary.blew_up, "{:?}", r.summary.blow_up_message);
+            assert_eq!(r.summary.steps_completed, 40);
+            continue;
+        }
         let scene = parse_scene(text, "docs/scenes.md", Path::new("."), &[])
             .unwrap_or_else(|e| panic!("{e}\n{text}"));
         let result = run_scene(&scene, &RunOptions::default()).unwrap();
