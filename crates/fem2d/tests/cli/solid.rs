@@ -46,6 +46,11 @@ fn two_d_only_flags_and_keys_are_refused_in_one_line() {
         "error: --gif: not available for a 3D scene (built-in case-a-3d, dim = 3)"
     );
     assert!(!out.exists());
+    // The other commands take 2D scenes only, and say so.
+    assert_eq!(
+        one_line_error(&["compare", "case-a-3d", "--energies", "stvk"]),
+        "error: `case-a-3d` is a 3D scene (dim = 3): only `fem2d run` takes 3D scenes yet"
+    );
     let scene = dir.join("ground.toml");
     std::fs::write(
         &scene,
