@@ -74,9 +74,10 @@ pub(crate) fn projective_weights<D: Dim>(
 /// The smallest `det F` over the cells at `x` and the number with `det F <= 0` (or not a
 /// number); min and count are exact, so the result is the same for any split.
 pub(crate) fn inversion<D: Dim>(mesh: &SimplexMesh<D>, x: &[D::Vector]) -> ForceReport {
-    (0..mesh.n_cells())
-        .into_par_iter()
-        .map(|c| {
+    mesh.elements()
+        .par_iter()
+        .enumerate()
+        .map(|(c, _)| {
             let mut corners = [D::Vector::zeros(); 4];
             for (k, &i) in mesh.cells()[c].as_ref().iter().enumerate() {
                 corners[k] = x[i as usize];

@@ -402,9 +402,10 @@ fn deformation_gradient<D: Dim>(
 /// same for any split).
 fn inversion<D: Dim>(mesh: &SimplexMesh<D>, x: &[D::Vector]) -> (Real, usize) {
     let n = mesh.n_cells();
-    (0..n.div_ceil(CELL_CHUNK))
-        .into_par_iter()
-        .map(|k| {
+    mesh.elements()
+        .par_chunks(CELL_CHUNK)
+        .enumerate()
+        .map(|(k, _)| {
             let mut s = (Real::INFINITY, 0usize);
             for c in k * CELL_CHUNK..((k + 1) * CELL_CHUNK).min(n) {
                 let j = D::det(&deformation_gradient(mesh, c, x, None));
