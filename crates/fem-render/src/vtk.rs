@@ -383,20 +383,39 @@ pub fn vtu_string(frame: &VtkFrame<'_>) -> Result<String> {
     out.push_str("        </DataArray>\n");
     out.push_str("      </Points>\n");
 
+    push_cells(
+        &mut out,
+        frame.triangles.iter().map(|t| &t[..]),
+        3,
+        VTK_TRIANGLE,
+    );
+    Ok(out)
+}
+
+/// The `Cells` section (connectivity, offsets, types) of cells of `nodes` points each, all of
+/// VTK type `cell_type`, and the closing tags of the piece and the file.
+fn push_cells<'c>(
+    out: &mut String,
+    cells: impl ExactSizeIterator<Item = &'c [usize]> + Clone,
+    nodes: usize,
+    cell_type: u8,
+) {
+    let nc = cells.len();
     out.push_str("      <Cells>\n");
     out.push_str("        <DataArray type=\"Int64\" Name=\"connectivity\" format=\"ascii\">\n");
-    for t in frame.triangles {
-        push_usize(&mut out, t[0]);
-        out.push(' ');
-        push_usize(&mut out, t[1]);
-        out.push(' ');
-        push_usize(&mut out, t[2]);
+    for cell in cells {
+        for (k, &v) in cell.iter().enumerate() {
+            if k > 0 {
+                out.push(' ');
+            }
+            push_usize(out, v);
+        }
         out.push('\n');
     }
     out.push_str("        </DataArray>\n");
     out.push_str("        <DataArray type=\"Int64\" Name=\"offsets\" format=\"ascii\">\n");
     for c in 0..nc {
-        push_usize(&mut out, 3 * (c + 1));
+        push_usize(out, nodes * (c + 1));
         out.push(if c % 12 == 11 || c + 1 == nc {
             '\n'
         } else {
@@ -406,7 +425,7 @@ pub fn vtu_string(frame: &VtkFrame<'_>) -> Result<String> {
     out.push_str("        </DataArray>\n");
     out.push_str("        <DataArray type=\"UInt8\" Name=\"types\" format=\"ascii\">\n");
     for c in 0..nc {
-        out.push('5');
+        push_usize(out, cell_type as usize);
         out.push(if c % 24 == 23 || c + 1 == nc {
             '\n'
         } else {
@@ -415,11 +434,9 @@ pub fn vtu_string(frame: &VtkFrame<'_>) -> Result<String> {
     }
     out.push_str("        </DataArray>\n");
     out.push_str("      </Cells>\n");
-
     out.push_str("    </Piece>\n");
     out.push_str("  </UnstructuredGrid>\n");
     out.push_str("</VTKFile>\n");
-    Ok(out)
 }
 
 /// Writes one frame to `path` as a `.vtu` file (atomically: temporary file and rename).
@@ -1056,41 +1073,11 @@ pub fn solid_vtu_string(frame: &SolidFrame<'_>) -> Result<String> {
     }
     out.push_str("        </DataArray>\n");
     out.push_str("      </Points>\n");
-    out.push_str("      <Cells>\n");
-    out.push_str("        <DataArray type=\"Int64\" Name=\"connectivity\" format=\"ascii\">\n");
-    for t in frame.tetrahedra {
-        for (k, &v) in t.iter().enumerate() {
-            if k > 0 {
-                out.push(' ');
-            }
-            push_usize(&mut out, v);
-        }
-        out.push('\n');
-    }
-    out.push_str("        </DataArray>\n");
-    out.push_str("        <DataArray type=\"Int64\" Name=\"offsets\" format=\"ascii\">\n");
-    for c in 0..nc {
-        push_usize(&mut out, 4 * (c + 1));
-        out.push(if c % 12 == 11 || c + 1 == nc {
-            '\n'
-        } else {
-            ' '
-        });
-    }
-    out.push_str("        </DataArray>\n");
-    out.push_str("        <DataArray type=\"UInt8\" Name=\"types\" format=\"ascii\">\n");
-    for c in 0..nc {
-        out.push_str("10");
-        out.push(if c % 24 == 23 || c + 1 == nc {
-            '\n'
-        } else {
-            ' '
-        });
-    }
-    out.push_str("        </DataArray>\n");
-    out.push_str("      </Cells>\n");
-    out.push_str("    </Piece>\n");
-    out.push_str("  </UnstructuredGrid>\n");
-    out.push_str("</VTKFile>\n");
+    push_cells(
+        &mut out,
+        frame.tetrahedra.iter().map(|t| &t[..]),
+        4,
+        VTK_TETRA,
+    );
     Ok(out)
 }
