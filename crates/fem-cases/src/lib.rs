@@ -36,6 +36,7 @@ pub mod outdir;
 pub mod pictures;
 pub mod report;
 pub mod run;
+pub mod scaling;
 pub mod solid;
 pub mod sweep;
 pub mod table1;

@@ -298,7 +298,8 @@ impl LoadedScene3 {
         SceneError::Scene(format!("{}: {field} = {value}: {rule}", self.origin))
     }
 
-    fn validate(&self) -> Result<(), SceneError> {
+    /// Check every key of the scene (the checks [`parse_scene3`] runs), naming the first wrong one.
+    pub fn validate(&self) -> Result<(), SceneError> {
         let s = &self.scene;
         if s.mesh.kind != "box" {
             return Err(self.error(
@@ -563,6 +564,10 @@ pub struct Summary3 {
     pub iterations: u64,
     /// The last step's residual (0 for explicit).
     pub final_residual: f64,
+    /// The largest final residual of a step, in the solver's measure (`None` for a solver
+    /// without iterations: explicit).
+    #[serde(default)]
+    pub max_step_residual: Option<f64>,
 }
 
 /// One recorded frame of a 3D run.
@@ -613,13 +618,74 @@ pub fn von_mises3<E: Hyperelastic<D3>>(model: &NdModel<D3, E>, x: &[Vec3], out: 
 /// Run a 3D scene: every step of the scene's solver, a frame recorded every
 /// `output.frame_every` steps (and the first and last), the summary. A step that fails ends
 /// the run as a blow-up (the summary says so; the state stays at the last good step).
-pub fn run3(
+pub fn run3<'a>(
     loaded: &LoadedScene3,
-    clock: &dyn Clock,
+    clock: &'a dyn Clock,
     threads: usize,
     keep_frames: bool,
-    mut progress: Option<&mut dyn Progress>,
+    progress: Option<&'a mut dyn Progress>,
 ) -> Result<RunResult3, SceneError> {
+    run3_with(
+        loaded,
+        RunEnv3 {
+            clock,
+            threads,
+            keep_frames,
+            progress,
+            sinks: Vec::new(),
+        },
+    )
+}
+
+/// One recorded frame of a 3D run, borrowed: what a [`FrameSink3`] receives.
+#[derive(Clone, Copy, Debug)]
+pub struct FrameView3<'a> {
+    /// Step number.
+    pub step: u64,
+    /// Time, s (the load factor for a load-stepping run).
+    pub time: f64,
+    /// Positions, m.
+    pub x: &'a [Vec3],
+    /// Velocities, m/s.
+    pub v: &'a [Vec3],
+    /// Lumped vertex masses, kg.
+    pub masses: &'a [f64],
+    /// Per-tetrahedron von Mises stress, Pa.
+    pub von_mises: &'a [f64],
+    /// The tetrahedra.
+    pub tetrahedra: &'a [[u32; 4]],
+}
+
+/// Receives every recorded frame of a 3D run, in order.
+pub trait FrameSink3 {
+    /// Take `frame`; an error ends the run with it.
+    fn frame(&mut self, frame: &FrameView3<'_>) -> Result<(), SceneError>;
+}
+
+/// What the caller of [`run3_with`] supplies.
+pub struct RunEnv3<'a> {
+    /// Read for the timings in the summary.
+    pub clock: &'a dyn Clock,
+    /// Rayon threads, for the summary.
+    pub threads: usize,
+    /// Keep every recorded frame in [`RunResult3::frames`] (otherwise the last only).
+    pub keep_frames: bool,
+    /// Told the steps.
+    pub progress: Option<&'a mut dyn Progress>,
+    /// Given every recorded frame; the first error ends the run with it.
+    pub sinks: Vec<&'a mut dyn FrameSink3>,
+}
+
+/// [`run3`] with frame sinks. The summary's `step_seconds` is the solver's steps alone
+/// (recording frames and the sinks are not counted), as in 2D.
+pub fn run3_with(loaded: &LoadedScene3, env: RunEnv3<'_>) -> Result<RunResult3, SceneError> {
+    let RunEnv3 {
+        clock,
+        threads,
+        keep_frames,
+        mut progress,
+        mut sinks,
+    } = env;
     let start = clock.seconds();
     let Built3 {
         model,
@@ -679,50 +745,67 @@ pub fn run3(
         probes: Vec::new(),
         iterations: 0,
         final_residual: 0.0,
+        max_step_residual: None,
     };
     let mut frames = Vec::new();
     let mut probe_rows = Vec::new();
     let mut vm = Vec::new();
-    let mut record =
-        |step: u64, state: &NdState<D3>, frames: &mut Vec<Frame3>, summary: &mut Summary3| {
-            von_mises3(&model, &state.x, &mut vm);
-            let (k, peak) =
-                vm.iter()
-                    .copied()
-                    .enumerate()
-                    .fold((0, f64::NEG_INFINITY), |(bk, bv), (k, v)| {
-                        if v > bv { (k, v) } else { (bk, bv) }
-                    });
-            if peak > summary.max_von_mises {
-                summary.max_von_mises = peak;
-                summary.max_von_mises_step = step;
-                summary.max_von_mises_element = k;
-            }
-            summary.final_max_von_mises = peak;
-            let row: Vec<[f64; 3]> = probes
-                .iter()
-                .map(|(_, v)| {
-                    let u = state.displacement(&model, *v);
-                    [u.x, u.y, u.z]
-                })
-                .collect();
-            probe_rows.push((step, state.t, row));
-            // Without `keep_frames` only the latest frame is held.
-            if !keep_frames {
-                frames.clear();
-            }
-            frames.push(Frame3 {
+    let mut record = |step: u64,
+                      state: &NdState<D3>,
+                      frames: &mut Vec<Frame3>,
+                      summary: &mut Summary3|
+     -> Result<(), SceneError> {
+        von_mises3(&model, &state.x, &mut vm);
+        for sink in sinks.iter_mut() {
+            sink.frame(&FrameView3 {
                 step,
                 time: state.t,
-                x: state.x.iter().map(|p| [p.x, p.y, p.z]).collect(),
-                von_mises: vm.clone(),
-            });
-        };
-    record(0, &state, &mut frames, &mut summary);
+                x: &state.x,
+                v: &state.v,
+                masses: model.masses(),
+                von_mises: &vm,
+                tetrahedra: model.mesh().cells(),
+            })?;
+        }
+        let (k, peak) =
+            vm.iter()
+                .copied()
+                .enumerate()
+                .fold((0, f64::NEG_INFINITY), |(bk, bv), (k, v)| {
+                    if v > bv { (k, v) } else { (bk, bv) }
+                });
+        if peak > summary.max_von_mises {
+            summary.max_von_mises = peak;
+            summary.max_von_mises_step = step;
+            summary.max_von_mises_element = k;
+        }
+        summary.final_max_von_mises = peak;
+        let row: Vec<[f64; 3]> = probes
+            .iter()
+            .map(|(_, v)| {
+                let u = state.displacement(&model, *v);
+                [u.x, u.y, u.z]
+            })
+            .collect();
+        probe_rows.push((step, state.t, row));
+        // Without `keep_frames` only the latest frame is held.
+        if !keep_frames {
+            frames.clear();
+        }
+        frames.push(Frame3 {
+            step,
+            time: state.t,
+            x: state.x.iter().map(|p| [p.x, p.y, p.z]).collect(),
+            von_mises: vm.clone(),
+        });
+        Ok(())
+    };
+    record(0, &state, &mut frames, &mut summary)?;
     if let Some(p) = progress.as_deref_mut() {
         p.start(planned);
     }
-    let step_start = clock.seconds();
+    let caps = s.solver.kind.capabilities();
+    let mut step_seconds = 0.0;
     let mut step = 0u64;
     let finished = |step: u64, state: &NdState<D3>| {
         if load_factor {
@@ -732,13 +815,23 @@ pub fn run3(
         }
     };
     while !finished(step, &state) {
-        match stepper.step(&model, &mut state) {
+        let t0 = clock.seconds();
+        let outcome = stepper.step(&model, &mut state);
+        step_seconds += clock.seconds() - t0;
+        match outcome {
             Ok(report) => {
                 step += 1;
                 summary.min_det_f = summary.min_det_f.min(report.min_det_f);
                 summary.inverted_elements = summary.inverted_elements.max(report.inverted);
                 summary.iterations += report.iterations as u64;
                 summary.final_residual = report.residual;
+                if caps.iterations || caps.implicit {
+                    summary.max_step_residual = Some(
+                        summary
+                            .max_step_residual
+                            .map_or(report.residual, |r| r.max(report.residual)),
+                    );
+                }
             }
             Err(e) => {
                 summary.blew_up = true;
@@ -747,19 +840,18 @@ pub fn run3(
             }
         }
         if step.is_multiple_of(every) || finished(step, &state) || load_factor {
-            record(step, &state, &mut frames, &mut summary);
+            record(step, &state, &mut frames, &mut summary)?;
         }
         if let Some(p) = progress.as_deref_mut() {
             p.advance(step);
         }
     }
-    let step_seconds = clock.seconds() - step_start;
     if let Some(p) = progress {
         p.finish();
     }
     // The last state is always a frame (a blow-up's last good step included).
     if frames.last().is_none_or(|f| f.step != step) {
-        record(step, &state, &mut frames, &mut summary);
+        record(step, &state, &mut frames, &mut summary)?;
     }
     summary.steps_completed = step;
     summary.simulated_seconds = if load_factor { 0.0 } else { state.t };

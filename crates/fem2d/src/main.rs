@@ -29,6 +29,9 @@ enum Command {
     // Negative numbers are values (`--alpha -1` reaches validation, which names the flag).
     #[command(allow_negative_numbers = true)]
     Budget(Box<cli::budget::BudgetArgs>),
+    /// The cost of a real-time frame against mesh size in 2D and 3D (case A; implicit Euler,
+    /// XPBD and VBD), with a log-log chart.
+    Scaling(Box<cli::scaling::ScalingArgs>),
     /// Regenerate the paper's Table 1 (case A) beside the paper's values; calibration scan.
     // Negative numbers are values (`--alpha -1` reaches validation, which names the flag).
     #[command(allow_negative_numbers = true)]
@@ -114,6 +117,7 @@ fn main() -> std::process::ExitCode {
         Command::Run(a) => cli::run::run(&a),
         Command::Compare(a) => cli::compare::run(&a),
         Command::Budget(a) => cli::budget::run(&a),
+        Command::Scaling(a) => cli::scaling::run(&a),
         Command::Table1(a) => cli::table1::run(&a),
         Command::Sweep(a) => cli::sweep::run_sweep(&a),
         Command::Merge(a) => cli::sweep::run_merge(&a),

@@ -6,16 +6,69 @@
 
 use fem_scene::SceneError;
 use fem_scene::run::{Frame, FrameSink};
+use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 
-/// The mesh and the labels the errors are taken over (written to `trajectories.json`).
+/// A cell of the mesh the errors are taken over: a triangle (`[u32; 3]`, 2D) or a tetrahedron
+/// (`[u32; 4]`, 3D), with the point type of its dimension.
+pub trait Cell:
+    Copy + Default + PartialEq + std::fmt::Debug + Serialize + DeserializeOwned + Send + Sync + 'static
+{
+    /// A position: `[f64; 2]` or `[f64; 3]`.
+    type Point: Copy
+        + Default
+        + PartialEq
+        + std::fmt::Debug
+        + Serialize
+        + DeserializeOwned
+        + AsRef<[f64]>
+        + Send
+        + Sync
+        + 'static;
+    /// What the cell is called in messages: `triangle`, `tetrahedron`.
+    const NAME: &'static str;
+    /// Its signed measure at positions `x` (area in m^2, volume in m^3); at most 0 when
+    /// inverted or flat.
+    fn measure(self, x: &[Self::Point]) -> f64;
+}
+
+impl Cell for [u32; 3] {
+    type Point = [f64; 2];
+    const NAME: &'static str = "triangle";
+    fn measure(self, x: &[[f64; 2]]) -> f64 {
+        let (a, b, c) = (
+            x[self[0] as usize],
+            x[self[1] as usize],
+            x[self[2] as usize],
+        );
+        0.5 * ((b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]))
+    }
+}
+
+impl Cell for [u32; 4] {
+    type Point = [f64; 3];
+    const NAME: &'static str = "tetrahedron";
+    fn measure(self, x: &[[f64; 3]]) -> f64 {
+        let p = self.map(|i| x[i as usize]);
+        let e = |k: usize| [0, 1, 2].map(|c| p[k][c] - p[0][c]);
+        let (a, b, c) = (e(1), e(2), e(3));
+        (a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0])
+            + a[2] * (b[0] * c[1] - b[1] * c[0]))
+            / 6.0
+    }
+}
+
+/// The mesh and the labels the errors are taken over (written to `trajectories.json`); `C`
+/// is its cell: a triangle (2D, the default) or a tetrahedron (3D).
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-pub struct Layout {
+#[serde(bound(serialize = "", deserialize = ""))]
+pub struct Layout<C: Cell = [u32; 3]> {
     /// Rest positions, m.
-    pub rest: Vec<[f64; 2]>,
-    /// Triangles.
-    pub triangles: Vec<[u32; 3]>,
-    /// The material region of each triangle (0: the base material, `k`: the `k`-th
+    pub rest: Vec<C::Point>,
+    /// The cells: triangles in 2D, tetrahedra in 3D.
+    #[serde(alias = "triangles")]
+    pub cells: Vec<C>,
+    /// The material region of each cell (0: the base material, `k`: the `k`-th
     /// `[[regions]]` entry).
     pub region_tags: Vec<u32>,
     /// Each material region: its name and whether it is rigid.
@@ -40,30 +93,30 @@ pub struct RegionInfo {
     pub rigid: bool,
 }
 
-impl Layout {
-    /// Rest area of each triangle, m^2.
+impl<C: Cell> Layout<C> {
+    /// Rest measure of each cell (area in 2D, m^2; volume in 3D, m^3).
     pub fn areas(&self) -> Vec<f64> {
-        self.triangles.iter().map(|t| area(&self.rest, t)).collect()
+        self.cells.iter().map(|t| t.measure(&self.rest)).collect()
     }
 
-    /// Whether triangle `t` is soft tissue (in a deformable region).
+    /// Whether cell `t` is soft tissue (in a deformable region).
     fn soft(&self, t: usize) -> bool {
         !self.regions[self.region_tags[t] as usize].rigid
     }
 }
 
-fn area(x: &[[f64; 2]], t: &[u32; 3]) -> f64 {
-    let (a, b, c) = (x[t[0] as usize], x[t[1] as usize], x[t[2] as usize]);
-    0.5 * ((b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]))
-}
-
-/// A run's record, one entry per frame (the first at t = 0).
+/// A run's record, one entry per frame (the first at t = 0); `P` is the point of its
+/// dimension (`[f64; 2]`, the default, or `[f64; 3]`).
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-pub struct Trajectory {
+#[serde(bound(
+    serialize = "P: Serialize",
+    deserialize = "P: serde::de::DeserializeOwned"
+))]
+pub struct Trajectory<P = [f64; 2]> {
     /// Positions, m.
-    pub frames: Vec<Vec<[f64; 2]>>,
-    /// Per-triangle von Mises stress, Pa (rigid triangles 0; `null` in JSON where the stress
-    /// is undefined, an inverted triangle; such a triangle counts as unstressed in the errors,
+    pub frames: Vec<Vec<P>>,
+    /// Per-cell von Mises stress, Pa (rigid cells 0; `null` in JSON where the stress
+    /// is undefined, an inverted cell; such a cell counts as unstressed in the errors,
     /// so its whole reference stress is error).
     #[serde(with = "nan_null")]
     pub von_mises: Vec<Vec<f64>>,
@@ -164,7 +217,7 @@ impl FrameSink for Recorder {
             }
             self.layout = Layout {
                 rest: f.mesh.vertices().iter().map(|p| [p.x, p.y]).collect(),
-                triangles: f.mesh.triangles().to_vec(),
+                cells: f.mesh.triangles().to_vec(),
                 region_tags: tags.clone(),
                 regions: f
                     .regions
@@ -229,6 +282,69 @@ impl FrameSink for Recorder {
     }
 }
 
+/// A [`FrameSink3`](fem_scene::solid::FrameSink3) filling a 3D [`Trajectory`]: positions,
+/// per-tetrahedron von Mises stress and the kinetic energy (a 3D scene has no regions, contact
+/// or rigid bodies: their rows stay empty).
+pub(crate) struct Recorder3 {
+    pub trajectory: Trajectory<[f64; 3]>,
+    /// The mesh, from the first frame (the rest state).
+    pub layout: Layout<[u32; 4]>,
+    cap: Option<f64>,
+    started: Option<std::time::Instant>,
+    /// The run was stopped by the cap.
+    pub over_cap: bool,
+}
+
+impl Recorder3 {
+    pub(crate) fn new(cap: Option<f64>) -> Self {
+        Recorder3 {
+            trajectory: Trajectory::default(),
+            layout: Layout::default(),
+            cap,
+            started: None,
+            over_cap: false,
+        }
+    }
+}
+
+impl fem_scene::solid::FrameSink3 for Recorder3 {
+    fn frame(&mut self, f: &fem_scene::solid::FrameView3<'_>) -> Result<(), SceneError> {
+        match (self.started, self.cap) {
+            (None, _) => self.started = Some(std::time::Instant::now()),
+            (Some(t0), Some(cap)) if t0.elapsed().as_secs_f64() > cap => {
+                self.over_cap = true;
+                return Err(SceneError::Usage("over the budget's cost cap".into()));
+            }
+            _ => {}
+        }
+        let points = |x: &[fem_core::dim::Vec3]| x.iter().map(|p| [p.x, p.y, p.z]).collect();
+        if self.layout.cells.is_empty() {
+            self.layout = Layout {
+                rest: points(f.x),
+                cells: f.tetrahedra.to_vec(),
+                region_tags: vec![0; f.tetrahedra.len()],
+                regions: vec![RegionInfo {
+                    name: "body".into(),
+                    rigid: false,
+                }],
+                ..Layout::default()
+            };
+        }
+        let t = &mut self.trajectory;
+        t.frames.push(points(f.x));
+        t.von_mises.push(f.von_mises.to_vec());
+        t.kinetic_energy.push(
+            f.v.iter()
+                .zip(f.masses)
+                .map(|(v, m)| 0.5 * m * v.norm_squared())
+                .sum(),
+        );
+        t.contact.push(Vec::new());
+        t.rigid.push(Vec::new());
+        Ok(())
+    }
+}
+
 /// A half-open range of frame indices `[start, end)`.
 pub type Span = [usize; 2];
 
@@ -257,7 +373,11 @@ pub struct Windows {
 
 impl Windows {
     /// The windows of `reference` on `layout` (see the type's docs).
-    pub fn find(layout: &Layout, reference: &Trajectory, settle: f64) -> Windows {
+    pub fn find<C: Cell>(
+        layout: &Layout<C>,
+        reference: &Trajectory<C::Point>,
+        settle: f64,
+    ) -> Windows {
         let n = reference.frames.len();
         // The obstacles' targets, or the ground alone.
         let from = usize::from(layout.has_ground && layout.contact_targets.len() > 1);
@@ -350,9 +470,10 @@ pub struct WindowErrors {
     pub regions: Vec<RegionErrors>,
     /// Per contact target: its peak pressure and impulse errors.
     pub contact: Vec<ContactErrors>,
-    /// Largest over frames of `sum_e |a_e - a_e,ref| / A`: the absolute area error.
+    /// Largest over frames of `sum_e |a_e - a_e,ref| / A`: the absolute area error (volume
+    /// in 3D).
     pub area: f64,
-    /// Most triangles with `det F <= 0` in one frame.
+    /// Most cells (triangles, tetrahedra) with `det F <= 0` in one frame.
     pub inverted: usize,
 }
 
@@ -413,11 +534,11 @@ impl Errors {
 
 /// The errors of `run` against `reference` over `windows`; frames beyond the shorter of the
 /// two are not compared.
-pub fn errors(
-    layout: &Layout,
+pub fn errors<C: Cell>(
+    layout: &Layout<C>,
     windows: &Windows,
-    run: &Trajectory,
-    reference: &Trajectory,
+    run: &Trajectory<C::Point>,
+    reference: &Trajectory<C::Point>,
 ) -> Errors {
     let n = run.frames.len().min(reference.frames.len());
     let clip = |s: Span| [s[0].min(n), s[1].min(n)];
@@ -461,12 +582,12 @@ impl StressSums {
     }
 }
 
-fn window(
-    layout: &Layout,
+fn window<C: Cell>(
+    layout: &Layout<C>,
     areas: &[f64],
     span: Span,
-    run: &Trajectory,
-    reference: &Trajectory,
+    run: &Trajectory<C::Point>,
+    reference: &Trajectory<C::Point>,
 ) -> WindowErrors {
     let total: f64 = areas.iter().sum();
     let mut e = WindowErrors::default();
@@ -485,16 +606,21 @@ fn window(
     for f in span[0]..span[1] {
         let (x, r) = (&run.frames[f], &reference.frames[f]);
         for (p, q) in x.iter().zip(r) {
-            let d2 = (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2);
+            let d2: f64 = p
+                .as_ref()
+                .iter()
+                .zip(q.as_ref())
+                .map(|(a, b)| (a - b) * (a - b))
+                .sum();
             sum += d2;
             count += 1;
             e.position_max = e.position_max.max(d2.sqrt());
         }
         let mut frame_area = 0.0;
         let mut inverted = 0;
-        for t in &layout.triangles {
-            let a = area(x, t);
-            frame_area += (a - area(r, t)).abs();
+        for t in &layout.cells {
+            let a = t.measure(x);
+            frame_area += (a - t.measure(r)).abs();
             inverted += usize::from(a <= 0.0);
         }
         e.area = e.area.max(frame_area / total);
@@ -582,7 +708,7 @@ fn window(
 /// where the triangle is not inverted, an inverted one counting as unstressed; a contact
 /// target's pressure or force; a rigid body's wrench; the kinetic energy), with how many and
 /// where the first is. `None` when every such value is finite.
-pub fn non_finite(layout: &Layout, t: &Trajectory) -> Option<String> {
+pub fn non_finite<C: Cell>(layout: &Layout<C>, t: &Trajectory<C::Point>) -> Option<String> {
     let first = |what: &str, count: usize, at: Option<(usize, String)>| {
         at.map(|(f, place)| {
             format!("{what} is not finite in {count} places (first at frame {f}, {place})")
@@ -593,7 +719,7 @@ pub fn non_finite(layout: &Layout, t: &Trajectory) -> Option<String> {
     let mut at = None;
     for (f, x) in t.frames.iter().enumerate() {
         for (v, p) in x.iter().enumerate() {
-            if !(p[0].is_finite() && p[1].is_finite()) {
+            if !p.as_ref().iter().all(|c| c.is_finite()) {
                 count += 1;
                 at = at.or(Some((f, format!("vertex {v}"))));
             }
@@ -606,10 +732,10 @@ pub fn non_finite(layout: &Layout, t: &Trajectory) -> Option<String> {
     let (mut count, mut at) = (0, None);
     for (f, s) in t.von_mises.iter().enumerate() {
         let Some(x) = t.frames.get(f) else { continue };
-        for (k, (v, tri)) in s.iter().zip(&layout.triangles).enumerate() {
-            if !v.is_finite() && layout.soft(k) && area(x, tri) > 0.0 {
+        for (k, (v, cell)) in s.iter().zip(&layout.cells).enumerate() {
+            if !v.is_finite() && layout.soft(k) && cell.measure(x) > 0.0 {
                 count += 1;
-                at = at.or(Some((f, format!("triangle {k}, not inverted"))));
+                at = at.or(Some((f, format!("{} {k}, not inverted", C::NAME))));
             }
         }
     }
@@ -692,7 +818,7 @@ mod tests {
         let rest = vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]];
         let layout = Layout {
             rest: rest.clone(),
-            triangles: vec![[0, 1, 2], [0, 2, 3]],
+            cells: vec![[0, 1, 2], [0, 2, 3]],
             region_tags: vec![0, 0],
             regions: vec![RegionInfo {
                 name: "body".into(),

@@ -54,19 +54,18 @@
 //! error naming `--max-minutes` ([`DEFAULT_MAX_MINUTES`] says why ten).
 
 pub mod measure;
+mod subject;
 mod table;
 
 use fem_core::energy::EnergyKind;
 use fem_scene::SceneError;
-use fem_scene::run::{RunEnv, RunResult, run};
 use fem_scene::scene::LoadedScene;
+use fem_scene::solid::LoadedScene3;
 use fem_solvers::SolverKind;
 use serde::{Deserialize, Serialize};
 
-use crate::files::FileSource;
-use crate::run::SystemClock;
-use measure::Recorder;
-pub use measure::{Errors, Layout, Phase, Trajectory, WindowErrors, Windows, errors};
+pub use measure::{Cell, Errors, Layout, Phase, Trajectory, WindowErrors, Windows, errors};
+use subject::{OverCap, Recorded, Subject};
 pub use table::drawable;
 
 /// The frameworks a budget compares. Serde and command-line names: [`Framework::name`].
@@ -659,124 +658,18 @@ pub struct Budget {
     pub sentences: Vec<String>,
 }
 
-/// Why a recorded run ended early, when the budget stopped it.
-struct OverCap;
-
-/// What [`record`] returns: the run's result, its trajectory and the mesh's layout.
-type Recorded = (RunResult, Trajectory, Layout);
-
-/// Run `scene` on one thread recording every `every`-th step; the result, its trajectory and
-/// the layout of its mesh, or `Ok(Err(OverCap))` once the run passed `cap` seconds.
-fn record(
-    scene: &LoadedScene,
-    every: u64,
-    cap: Option<f64>,
-) -> Result<Result<Recorded, OverCap>, SceneError> {
-    let mut scene = scene.clone();
-    scene.scene.output.frame_every = every;
-    scene.scene.output.frames = false;
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(1)
-        .build()
-        .map_err(|e| SceneError::Usage(format!("thread pool: {e}")))?;
-    pool.install(|| {
-        let clock = SystemClock::new();
-        let files = FileSource::for_scene(&scene);
-        let mut rec = Recorder::new(
-            scene.scene.ground.is_some(),
-            scene.scene.obstacles.len(),
-            cap,
-        );
-        let result = {
-            let mut env = RunEnv {
-                clock: &clock,
-                files: &files,
-                progress: None,
-                sinks: vec![&mut rec],
-                snapshot_every: None,
-                drag: None,
-            };
-            run(&scene, &mut env)
-        };
-        if rec.over_cap {
-            return Ok(Err(OverCap));
-        }
-        Ok(Ok((result?, rec.trajectory, rec.layout)))
-    })
-}
-
-/// `scene` with `energy`, `solver` and `values`, `steps` steps of `dt`; validated (the typed
-/// edit of a comparison's rows).
-fn variant(
-    base: &LoadedScene,
-    energy: EnergyKind,
-    solver: SolverKind,
-    values: &[(String, toml::Value)],
-    dt: f64,
-    steps: u64,
-) -> Result<LoadedScene, SceneError> {
-    let mut settings = vec![
-        ("dt".to_owned(), toml::Value::Float(dt)),
-        ("steps".to_owned(), toml::Value::Integer(steps as i64)),
-    ];
-    settings.extend_from_slice(values);
-    crate::compare::variant_scene(base, energy, solver, &settings)
-}
-
-/// Why `framework` cannot run `scene` with `energy`, if it cannot.
-fn cannot_run(scene: &LoadedScene, energy: EnergyKind, framework: Framework) -> Option<String> {
-    let s = &scene.scene;
-    let contact = s.ground.is_some() || !s.obstacles.is_empty();
-    if contact && !framework.solver().capabilities().contact {
-        return Some(format!(
-            "{} does not handle contact, and the scene has a ground or obstacles",
-            framework.name()
-        ));
-    }
-    if s.material.formulation == fem_scene::scene::Formulation::AveragedPressure
-        && !framework.solver().capabilities().averaged_pressure
-    {
-        return Some(format!(
-            "{} does not support the averaged nodal pressure triangle (material.formulation = averaged-pressure)",
-            framework.name()
-        ));
-    }
-    if framework == Framework::Pd && energy != EnergyKind::Corotational {
-        return Some("Projective Dynamics runs the co-rotational energy only".into());
-    }
-    None
-}
-
-/// A budget comparison with what its errors were computed from.
+/// A budget comparison with what its errors were computed from; `C` is the mesh's cell
+/// (triangles, the default, or tetrahedra for a 3D scene).
 #[derive(Clone, Debug)]
-pub struct BudgetRun {
+pub struct BudgetRun<C: Cell = [u32; 3]> {
     /// The answer.
     pub budget: Budget,
     /// The mesh, its regions and the contact targets.
-    pub layout: Layout,
+    pub layout: Layout<C>,
     /// The trajectories of each energy's reference (`ENERGY-reference`), of the reference at
     /// twice its step (`ENERGY-reference-coarse`) and of each row's best setting within the
     /// budget (`ENERGY-FRAMEWORK`).
-    pub trajectories: Vec<(String, Trajectory)>,
-}
-
-/// `layout` with `scene`'s contact targets (the ground, then each obstacle) and the frame step.
-fn with_targets(scene: &LoadedScene, mut layout: Layout, frame_dt: f64) -> Layout {
-    let s = &scene.scene;
-    layout.contact_targets.clear();
-    if s.ground.is_some() {
-        layout.contact_targets.push("ground".to_owned());
-    }
-    for (k, o) in s.obstacles.iter().enumerate() {
-        layout.contact_targets.push(if o.name.is_empty() {
-            format!("obstacle {k}")
-        } else {
-            o.name.clone()
-        });
-    }
-    layout.has_ground = s.ground.is_some();
-    layout.frame_dt = frame_dt;
-    layout
+    pub trajectories: Vec<(String, Trajectory<C::Point>)>,
 }
 
 /// Default of [`BudgetSpec::max_minutes`] (`--max-minutes`): ten minutes. `fem2d budget
@@ -843,10 +736,9 @@ enum DurationFrom {
 impl Plan {
     /// Check every setting of `spec` on `base`, naming the flag (or the scene key) and the
     /// value of the first that is wrong.
-    fn new(base: &LoadedScene, spec: &BudgetSpec) -> Result<Plan, SceneError> {
+    fn new<S: Subject>(base: &S, spec: &BudgetSpec) -> Result<Plan, SceneError> {
         use fem_core::math::readable as r;
         let usage = |m: String| Err(SceneError::Usage(m));
-        let s = &base.scene;
         if !(spec.fps.is_finite() && spec.fps > 0.0) {
             return usage(format!(
                 "--fps {}: must be a finite number > 0",
@@ -933,7 +825,7 @@ impl Plan {
                 return usage(format!("--energies: {} is listed twice", e.name()));
             }
         }
-        let defaults = s.budget.clone().unwrap_or_default();
+        let defaults = base.defaults();
         let energies: Vec<EnergyKind> = if !spec.energies.is_empty() {
             spec.energies.clone()
         } else if !defaults.energies.is_empty() {
@@ -949,13 +841,13 @@ impl Plan {
                 "--reference-steps {n}: must be an integer from 2 to 10000"
             ));
         }
-        let contact = s.ground.is_some() || !s.obstacles.is_empty();
+        let contact = base.contact();
         let reference_per_frame = reference_steps.unwrap_or(if contact { 10 } else { 100 });
         let (duration, from) = match (spec.duration, defaults.duration) {
             (Some(d), _) => (d, DurationFrom::Flag),
             (None, Some(d)) => (d, DurationFrom::Scene("budget.duration")),
             (None, None) => (
-                s.solver.dt * s.solver.steps as f64,
+                base.scene_duration(),
                 DurationFrom::Scene("solver.steps x solver.dt"),
             ),
         };
@@ -970,7 +862,7 @@ impl Plan {
             DurationFrom::Scene(key) if !(duration.is_finite() && duration > 0.0) => {
                 return usage(format!(
                     "{}: {key} = {} s: must be a finite number > 0; set --duration",
-                    base.origin,
+                    base.origin(),
                     r(duration)
                 ));
             }
@@ -1041,7 +933,9 @@ impl Plan {
 struct TimeModel {
     frames: u64,
     budget_s: f64,
-    triangles: usize,
+    cells: usize,
+    /// `triangle` or `tetrahedron`.
+    cell_name: &'static str,
     reference_steps: u64,
     /// The pre-flight's cost of a reference step per triangle.
     seconds_per_step_triangle: f64,
@@ -1051,17 +945,16 @@ struct TimeModel {
 }
 
 impl TimeModel {
-    fn new(base: &LoadedScene, spec: &BudgetSpec, plan: &Plan) -> Result<TimeModel, SceneError> {
-        let mesh = fem_scene::build::build_mesh(base, &FileSource::for_scene(base))?;
+    fn new<S: Subject>(base: &S, spec: &BudgetSpec, plan: &Plan) -> Result<TimeModel, SceneError> {
         let ladders = plan
             .energies
             .iter()
             .map(|&e| {
                 spec.frameworks
                     .iter()
-                    .filter(|&&f| cannot_run(base, e, f).is_none())
-                    .map(|f| {
-                        let mut groups: Vec<u8> = f.ladder().iter().map(|s| s.group).collect();
+                    .filter(|&&f| base.cannot_run(e, f).is_none())
+                    .map(|&f| {
+                        let mut groups: Vec<u8> = base.ladder(f).iter().map(|s| s.group).collect();
                         groups.dedup();
                         groups.len()
                     })
@@ -1071,7 +964,8 @@ impl TimeModel {
         Ok(TimeModel {
             frames: plan.frames,
             budget_s: spec.budget_ms * 1e-3,
-            triangles: mesh.triangles().len(),
+            cells: base.cells()?,
+            cell_name: S::Cell::NAME,
             reference_steps: plan.frames * plan.reference_per_frame,
             seconds_per_step_triangle: if plan.contact {
                 PREFLIGHT_SECONDS_PER_STEP_TRIANGLE_CONTACT
@@ -1100,18 +994,19 @@ impl TimeModel {
     /// The estimate before anything runs.
     fn preflight(&self) -> Result<String, SceneError> {
         let reference_s =
-            (self.reference_steps as f64) * self.triangles as f64 * self.seconds_per_step_triangle;
+            (self.reference_steps as f64) * self.cells as f64 * self.seconds_per_step_triangle;
         self.check(
             self.energies(0, reference_s),
             &format!(
                 "estimated before running, from the step counts: {} x (a reference of {} \
-                 steps on {} triangles + up to {} ladders of settings over {} frames)",
+                 steps on {} {}s + up to {} ladders of settings over {} frames)",
                 match self.ladders.len() {
                     1 => "1 energy".to_owned(),
                     n => format!("{n} energies"),
                 },
                 self.reference_steps,
-                self.triangles,
+                self.cells,
+                self.cell_name,
                 self.ladders.iter().max().copied().unwrap_or(0),
                 self.frames
             ),
@@ -1165,10 +1060,31 @@ fn minutes_text(seconds: f64) -> String {
 pub fn budget(
     base: &LoadedScene,
     spec: &BudgetSpec,
-    mut progress: impl FnMut(&str),
+    progress: impl FnMut(&str),
 ) -> Result<BudgetRun, SceneError> {
+    compare_frameworks(base, spec, progress)
+}
+
+/// [`budget`] on a 3D scene (`dim = 3`, [`fem_scene::solid`]): the same ladders, reference,
+/// errors and ranking over tetrahedra (the von Mises field's L2 error weighted by rest
+/// volume). A 3D scene has no contact or regions, so it is ranked by position RMS unless
+/// `rank_by` says otherwise; a framework without a 3D path (linearly implicit Euler) is a row
+/// that cannot run, and the BDF2 rungs are left out (the 3D solvers have backward Euler only).
+pub fn budget3(
+    base: &LoadedScene3,
+    spec: &BudgetSpec,
+    progress: impl FnMut(&str),
+) -> Result<BudgetRun<[u32; 4]>, SceneError> {
+    compare_frameworks(base, spec, progress)
+}
+
+/// The comparison of [`budget`] and [`budget3`], written once over the scene's dimension.
+fn compare_frameworks<S: Subject>(
+    base: &S,
+    spec: &BudgetSpec,
+    mut progress: impl FnMut(&str),
+) -> Result<BudgetRun<S::Cell>, SceneError> {
     let started = std::time::Instant::now();
-    let s = &base.scene;
     let plan = Plan::new(base, spec)?;
     let model = TimeModel::new(base, spec, &plan)?;
     progress(&format!("wall time: {}", model.preflight()?));
@@ -1179,7 +1095,7 @@ pub fn budget(
         reference_per_frame: per_frame,
         ..
     } = plan;
-    let rank_by = spec.rank_by.unwrap_or_else(|| RankBy::default_for(base));
+    let rank_by = spec.rank_by.unwrap_or_else(|| base.rank_default());
     let cap = spec.cost_cap * spec.budget_ms * 1e-3 * frames as f64;
     let mut lay = Layout::default();
     let mut trials = Vec::new();
@@ -1218,23 +1134,22 @@ pub fn budget(
             ))
         };
         // `Ok(Err(why))`: the reference did not complete.
-        let run_reference = |per: u64| -> Result<Result<Recorded, String>, SceneError> {
-            let scene = variant(
-                base,
+        let run_reference = |per: u64| -> Result<Result<Recorded<S::Cell>, String>, SceneError> {
+            let scene = base.variant(
                 energy,
                 SolverKind::Implicit,
                 &values,
                 frame_dt / per as f64,
                 frames * per,
             )?;
-            let Ok((result, trajectory, layout)) = record(&scene, per, Some(left.max(0.0)))? else {
+            let Ok((result, trajectory, layout)) = scene.record(per, Some(left.max(0.0)))? else {
                 return Err(too_long());
             };
-            if result.summary.blew_up {
+            if result.blew_up {
                 return Ok(Err(format!(
                     "the reference run ({}, {energy}) did not complete: {}",
                     label_of(per),
-                    result.summary.blow_up_message.clone().unwrap_or_default()
+                    result.blow_up_message.clone().unwrap_or_default()
                 )));
             }
             Ok(Ok((result, trajectory, layout)))
@@ -1263,7 +1178,7 @@ pub fn budget(
                         rows.push(Row {
                             energy,
                             framework,
-                            cannot_run: Some(cannot_run(base, energy, framework).unwrap_or_else(
+                            cannot_run: Some(base.cannot_run(energy, framework).unwrap_or_else(
                                 || format!("no reference to measure against: {why}"),
                             )),
                             cheapest: None,
@@ -1274,7 +1189,7 @@ pub fn budget(
                 }
             };
         reference_seconds.push(reference_started.elapsed().as_secs_f64());
-        lay = with_targets(base, fine_layout, frame_dt);
+        lay = base.finish_layout(fine_layout, frame_dt);
         let windows = Windows::find(&lay, &reference, spec.settle);
         // A reference with a value that is not finite measures nothing.
         let reference_note =
@@ -1327,7 +1242,7 @@ pub fn budget(
             )
         };
         for &framework in &spec.frameworks {
-            if let Some(why) = cannot_run(base, energy, framework) {
+            if let Some(why) = base.cannot_run(energy, framework) {
                 rows.push(Row {
                     energy,
                     framework,
@@ -1339,15 +1254,14 @@ pub fn budget(
             }
             progress(&format!("{energy}: {}", framework.name()));
             let mut cheapest: Option<Trial> = None;
-            let mut best: Option<(Trial, Trajectory)> = None;
+            let mut best: Option<(Trial, Trajectory<_>)> = None;
             let mut skip_group: Option<u8> = None;
-            for setting in framework.ladder() {
+            for setting in base.ladder(framework) {
                 if skip_group == Some(setting.group) {
                     continue;
                 }
                 let per = setting.steps_per_frame;
-                let scene = variant(
-                    base,
+                let scene = base.variant(
                     energy,
                     framework.solver(),
                     &setting.values,
@@ -1370,7 +1284,7 @@ pub fn budget(
                     measured: false,
                     note: None,
                 };
-                let (trajectory, residual_note) = match record(&scene, per, Some(cap))? {
+                let (trajectory, residual_note) = match scene.record(per, Some(cap))? {
                     Err(OverCap) => {
                         trial.over_cap = true;
                         trial.failure = Some(format!(
@@ -1381,8 +1295,7 @@ pub fn budget(
                         skip_group = Some(setting.group);
                         continue;
                     }
-                    Ok((result, trajectory, _)) => {
-                        let s = &result.summary;
+                    Ok((s, trajectory, _)) => {
                         trial.stable = !s.blew_up;
                         trial.failure = s.blow_up_message.clone();
                         trial.ms_per_frame = 1e3 * s.step_seconds / frames as f64;
@@ -1484,7 +1397,7 @@ pub fn budget(
             .then(a.framework.cmp(&b.framework))
     });
     let mut budget = Budget {
-        scene: s.name.clone(),
+        scene: base.name().to_owned(),
         fps: spec.fps,
         budget_ms: spec.budget_ms,
         frames,
@@ -1511,12 +1424,12 @@ pub fn budget(
 /// Measure a stable `trial` against the reference: its errors and ranking value, or in its
 /// note why they cannot be measured (a value of the reference or of the run that is not
 /// finite, an error that overflowed); then it is not `measured` and its errors stay zero.
-fn measure_trial(
+fn measure_trial<C: Cell>(
     trial: &mut Trial,
-    lay: &Layout,
+    lay: &Layout<C>,
     windows: &Windows,
-    trajectory: &Trajectory,
-    reference: &Trajectory,
+    trajectory: &Trajectory<C::Point>,
+    reference: &Trajectory<C::Point>,
     reference_note: Option<&str>,
     rank_by: RankBy,
 ) {
@@ -1568,7 +1481,7 @@ pub(crate) fn pct(x: Option<f64>) -> String {
     }
 }
 
-impl BudgetRun {
+impl<C: Cell> BudgetRun<C> {
     /// Write `budget.md`, `budget.csv`, `budget.json`, one `pareto-ENERGY.svg` and `.png` and
     /// one `phases-ENERGY.svg` and `.png` per energy, and with `trajectories`
     /// `trajectories.json` (the layout, the windows, and every trajectory the table's errors

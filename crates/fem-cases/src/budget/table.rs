@@ -4,7 +4,7 @@ use std::fmt::Write as _;
 
 use fem_core::energy::EnergyKind;
 
-use super::measure::{Phase, WindowErrors};
+use super::measure::{self, Phase, WindowErrors};
 use super::{
     Budget, BudgetRun, BudgetSpec, Framework, RankBy, Reference, Trial, fmt_num, pct, sci,
 };
@@ -641,7 +641,7 @@ impl Reference {
     }
 }
 
-impl BudgetRun {
+impl<C: measure::Cell> BudgetRun<C> {
     /// One chart per energy: the reference's kinetic energy, the soft tissue's peak von Mises
     /// stress and the total contact force against time, each over its largest value (log
     /// scale), with the settle threshold and the windows' starts as lines.

@@ -7,7 +7,8 @@
 use std::sync::OnceLock;
 
 use fem_cases::budget::{
-    BudgetRun, BudgetSpec, Framework, Layout, Phase, RankBy, Trajectory, Windows, budget, errors,
+    BudgetRun, BudgetSpec, Cell, Framework, Layout, Phase, RankBy, Trajectory, Windows, budget,
+    errors,
 };
 use fem_cases::files::load_case_or_file;
 use fem_core::energy::EnergyKind;
@@ -232,15 +233,15 @@ fn tolerance_rungs_approach_implicit_euler_on_case_a() {
 /// `trajectories.json` (the layout, the windows found again on each reference, the
 /// trajectories), every row's best setting and each reference's own error give the same
 /// numbers, bit for bit.
-fn recompute_from_written(run: &BudgetRun, tag: &str) -> usize {
+pub(crate) fn recompute_from_written<C: Cell>(run: &BudgetRun<C>, tag: &str) -> usize {
     let dir = std::env::temp_dir().join(format!("fem2d-budget-{tag}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     run.write(&dir, true).unwrap();
     let text = std::fs::read_to_string(dir.join("trajectories.json")).unwrap();
     let v: serde_json::Value = serde_json::from_str(&text).unwrap();
-    let layout: Layout = serde_json::from_value(v["layout"].clone()).unwrap();
-    let trajectory = |name: &str| -> Trajectory {
+    let layout: Layout<C> = serde_json::from_value(v["layout"].clone()).unwrap();
+    let trajectory = |name: &str| -> Trajectory<C::Point> {
         serde_json::from_value(v["trajectories"][name].clone())
             .unwrap_or_else(|e| panic!("{name}: {e}"))
     };

@@ -2,6 +2,7 @@
 //! built-in cases, and the golden summaries.
 
 mod budget;
+mod budget3;
 mod cases;
 mod figures;
 mod goldens;

@@ -4,10 +4,11 @@
 use std::path::PathBuf;
 
 use clap::Args;
-use fem_cases::budget::{BudgetSpec, Framework, RankBy, budget};
-use fem_cases::files::load_case_or_file;
+use fem_cases::budget::{BudgetRun, BudgetSpec, Cell, Framework, RankBy, budget, budget3};
+use fem_cases::files::load_any;
 use fem_cases::outdir::OutDir;
 use fem_core::energy::EnergyKind;
+use fem_scene::solid::AnyScene;
 
 use super::run::SceneArgs;
 
@@ -115,14 +116,33 @@ pub fn run(args: &BudgetArgs) -> Result<(), String> {
             .collect::<Result<_, _>>()?;
         twice("--frameworks", &args.frameworks)?;
     }
-    let base = load_case_or_file(&args.scene.scene, &args.scene.set).map_err(|e| e.to_string())?;
+    let base = load_any(&args.scene.scene, &args.scene.set).map_err(|e| e.to_string())?;
     // Take the output directory first, so a second writer fails before the runs.
     let out = match &args.out {
         Some(target) => Some(OutDir::begin(target).map_err(|e| e.to_string())?),
         None => None,
     };
-    let result =
-        budget(&base, &spec, |what| eprintln!("budget: {what}")).map_err(|e| e.to_string())?;
+    let progress = |what: &str| eprintln!("budget: {what}");
+    match base {
+        AnyScene::Two(base) => finish(
+            budget(&base, &spec, progress).map_err(|e| e.to_string())?,
+            out,
+            args,
+        ),
+        AnyScene::Three(base) => finish(
+            budget3(&base, &spec, progress).map_err(|e| e.to_string())?,
+            out,
+            args,
+        ),
+    }
+}
+
+/// Print the table and write the outputs of either dimension's budget.
+fn finish<C: Cell>(
+    result: BudgetRun<C>,
+    out: Option<OutDir>,
+    args: &BudgetArgs,
+) -> Result<(), String> {
     print!("{}", result.budget.to_markdown());
     if let (Some(out), Some(target)) = (out, &args.out) {
         let written = result

@@ -5,5 +5,6 @@ pub mod compare;
 pub mod mesh;
 pub mod report;
 pub mod run;
+pub mod scaling;
 pub mod sweep;
 pub mod table1;

@@ -838,3 +838,90 @@ fn a_reader_that_closes_the_pipe_ends_the_command_quietly() {
         "{stderr}"
     );
 }
+
+/// `fem2d budget` on a 3D scene: the built-in `case-a-3d` (coarsened), its outputs, the row of
+/// a framework without a 3D path, and a bad flag refused in one line as in 2D.
+#[test]
+fn budget_runs_a_3d_scene_and_names_what_has_no_3d_path() {
+    let dir = scratch("budget-3d");
+    let out = dir.join("b");
+    let stdout = ok(&fem2d(&[
+        "budget",
+        "case-a-3d",
+        "--set",
+        "mesh.nx=8",
+        "--set",
+        "mesh.ny=2",
+        "--set",
+        "mesh.nz=2",
+        "--energies",
+        "neo-hookean",
+        "--frameworks",
+        "explicit,xpbd,linear-implicit",
+        "--duration",
+        "0.1",
+        "--reference-steps",
+        "10",
+        "--out",
+        arg(&out),
+        "--trajectories",
+    ]));
+    assert!(
+        stdout.contains("# Frame budget: case-a-3d at 90 Hz"),
+        "{stdout}"
+    );
+    assert!(
+        stdout.contains("cannot run: linear-implicit has no 3D path yet"),
+        "{stdout}"
+    );
+    for f in [
+        "budget.md",
+        "budget.csv",
+        "budget.json",
+        "pareto-neo-hookean.png",
+        "trajectories.json",
+    ] {
+        assert!(out.join(f).is_file(), "{f}");
+    }
+    let traj = std::fs::read_to_string(out.join("trajectories.json")).unwrap();
+    let v: serde_json::Value = serde_json::from_str(&traj).unwrap();
+    // 192 tetrahedra (8 x 2 x 2 cubes of 6) of four vertices, points of three coordinates.
+    assert_eq!(v["layout"]["cells"].as_array().unwrap().len(), 192);
+    assert_eq!(v["layout"]["cells"][0].as_array().unwrap().len(), 4);
+    assert_eq!(v["layout"]["rest"][0].as_array().unwrap().len(), 3);
+    let e = one_line_error(&fem2d(&["budget", "case-a-3d", "--fps", "0"]));
+    assert!(e.contains("--fps 0: must be a finite number > 0"), "{e}");
+}
+
+/// `fem2d scaling --quick`: the table, its growth exponents, and the chart and data files.
+#[test]
+fn scaling_writes_the_table_and_the_log_log_chart() {
+    let dir = scratch("scaling");
+    let out = dir.join("s");
+    let stdout = ok(&fem2d(&["scaling", "--quick", "--out", arg(&out)]));
+    for row in [
+        "| 2D | implicit, velocity 1e-2 m/s | 20 x 4 | 160 | 210 |",
+        "| 3D | vbd, 10 iterations | 20 x 4 x 4 | 1920 | 1575 |",
+        "Growth exponent",
+    ] {
+        assert!(stdout.contains(row), "{row}\n{stdout}");
+    }
+    for f in ["scaling.md", "scaling.json", "scaling.svg", "scaling.png"] {
+        assert!(out.join(f).is_file(), "{f}");
+    }
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("scaling.json")).unwrap()).unwrap();
+    // 3 solvers x (3 sizes in 2D + 2 in 3D), every one with a positive cost.
+    let points = v["points"].as_array().unwrap();
+    assert_eq!(points.len(), 15);
+    assert!(
+        points
+            .iter()
+            .all(|p| p["ms_per_frame"].as_f64().unwrap() > 0.0 && p["failure"].is_null())
+    );
+    let e = one_line_error(&fem2d(&["scaling", "--budget-ms", "0"]));
+    assert!(
+        e.contains("--budget-ms 0: must be a finite number > 0"),
+        "{e}"
+    );
+}
