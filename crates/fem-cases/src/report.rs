@@ -20,6 +20,7 @@ use base64::Engine as _;
 use crate::figures::{CaseRuns, Figure, run_cases, write_animations, write_figures};
 use crate::run::write_atomic;
 use crate::table1::table1;
+use fem_core::energy::EnergyKind;
 use fem_scene::SceneError;
 
 /// How to build the report.
@@ -109,7 +110,10 @@ pub fn write_report(
     timings.push(("figures and plots".into(), figure_seconds));
     timings.push(("animations".into(), animation_seconds));
     if options.budget {
-        timings.push(("frame budget (cases A and D)".into(), budget_seconds));
+        timings.push((
+            "frame budget (cases A, D and A in 3D; cost against mesh size)".into(),
+            budget_seconds,
+        ));
     }
     let html = page(
         &table,
@@ -290,14 +294,17 @@ struct CaseBudget {
 }
 
 /// The frame budget (90 Hz, 5 ms per frame, one thread) of case A (the paper's three energies,
-/// 0.5 s) and case D (its `[budget]` table: Neo-Hookean, 1 s), with one Pareto chart per energy
-/// and case D's window chart in `dir`.
+/// 0.5 s), case D (its `[budget]` table: Neo-Hookean, 1 s) and case A in 3D (Neo-Hookean,
+/// 0.5 s, the 2D mesh extruded: 20 x 4 x 4 cubes), with one Pareto chart per energy and case
+/// D's window chart in `dir`; then the sentence setting case A's two dimensions side by side
+/// and the cost of a frame against mesh size in both ([`crate::scaling`], quick).
 fn frame_budgets(
     dir: &Path,
     progress: &mut impl FnMut(&str),
 ) -> Result<Vec<CaseBudget>, SceneError> {
-    use crate::budget::{BudgetSpec, budget};
+    use crate::budget::{BudgetSpec, budget, budget3};
     let mut out = Vec::new();
+    let mut case_a = None;
     // Case D's own `[budget]` table: Neo-Hookean over one second (the impact and half a
     // second of sustained crush).
     for (name, energies, duration) in [
@@ -312,63 +319,111 @@ fn frame_budgets(
             ..BudgetSpec::default()
         };
         let run = budget(&base, &spec, |_| {})?;
-        let mut charts = Vec::new();
-        let png_of = |chart: &fem_render::chart::LineChart| {
-            chart
-                .to_png()
-                .and_then(|i| i.to_png())
-                .map_err(|e| SceneError::Io(e.to_string()))
-        };
-        let phases = run.phase_charts();
-        for (energy, chart) in run
+        out.push(case_budget(name, &run, dir)?);
+        if name == "case-a" {
+            case_a = Some(run.budget);
+        }
+    }
+    progress("frame budget: case-a-3d");
+    let base = fem_scene::solid::load_case3("case-a-3d", &[])?;
+    let spec = BudgetSpec {
+        duration: Some(0.5),
+        energies: vec![EnergyKind::NeoHookean],
+        ..BudgetSpec::default()
+    };
+    let run = budget3(&base, &spec, |_| {})?;
+    let mut three = case_budget("case-a-3d", &run, dir)?;
+    if let Some(two) = &case_a {
+        three.markdown = format!(
+            "- {}\n\n{}",
+            crate::budget::dimensions_sentence(two, &run.budget, EnergyKind::NeoHookean),
+            three.markdown
+        );
+    }
+    out.push(three);
+    progress("cost against mesh size, 2D and 3D");
+    let scaling = crate::scaling::scaling(&crate::scaling::ScalingSpec::quick(), |_| {})?;
+    let file = "budget-scaling.png".to_owned();
+    let png = scaling
+        .chart(5.0)
+        .to_png()
+        .and_then(|i| i.to_png())
+        .map_err(|e| SceneError::Io(e.to_string()))?;
+    write_atomic(&dir.join(&file), &png)?;
+    out.push(CaseBudget {
+        name: "case A in 2D and 3D: the cost of a frame against mesh size",
+        markdown: scaling.to_markdown(),
+        charts: vec![Figure {
+            file,
+            title: "Cost of a frame against mesh size, 2D and 3D".into(),
+            caption: "Case A refined in the plane (2D: nx x ny cells of 2 triangles; 3D: nx x ny x nz cubes of 6 tetrahedra), Neo-Hookean, one step of 1/90 s a frame on one thread: implicit Euler (velocity tolerance 1e-2 m/s), XPBD and VBD at 10 iterations; milliseconds per frame against unknowns, log-log, with the 5 ms budget (`fem2d scaling`; a quick run of small meshes here, the full one in docs/budget.md).".into(),
+        }],
+    });
+    Ok(out)
+}
+
+/// One budget's section of the report: its markdown, its Pareto charts and (with an impact
+/// window) its window charts, written to `dir`.
+fn case_budget<C: crate::budget::Cell>(
+    name: &'static str,
+    run: &crate::budget::BudgetRun<C>,
+    dir: &Path,
+) -> Result<CaseBudget, SceneError> {
+    let mut charts = Vec::new();
+    let png_of = |chart: &fem_render::chart::LineChart| {
+        chart
+            .to_png()
+            .and_then(|i| i.to_png())
+            .map_err(|e| SceneError::Io(e.to_string()))
+    };
+    let phases = run.phase_charts();
+    for (energy, chart) in run
+        .budget
+        .charts()
+        .into_iter()
+        .filter(|(_, c)| crate::budget::drawable(c))
+    {
+        let file = format!("budget-{name}-{}.png", energy.name());
+        write_atomic(&dir.join(&file), &png_of(&chart)?)?;
+        let sentence = run
             .budget
-            .charts()
-            .into_iter()
-            .filter(|(_, c)| crate::budget::drawable(c))
-        {
-            let file = format!("budget-{name}-{}.png", energy.name());
-            write_atomic(&dir.join(&file), &png_of(&chart)?)?;
-            let sentence = run
+            .sentences
+            .iter()
+            .find(|s| s.starts_with(energy.name()))
+            .cloned()
+            .unwrap_or_default();
+        charts.push(Figure {
+            file,
+            title: format!("Frame budget, {name}, {energy}"),
+            caption: format!(
+                "The error the frameworks are ranked by ({}) against stepping time per frame on one thread, every stable setting of every framework ({} frames); the vertical line is the 5 ms budget. {sentence}",
+                run.budget.reference_of(energy).map_or_else(
+                    || run.budget.rank_by.name().to_owned(),
+                    |r| run.budget.rank_by.describe(&r.windows)
+                ),
+                run.budget.frames
+            ),
+        });
+        if let Some((_, phase)) = phases.iter().find(|(e, _)| *e == energy)
+            && run
                 .budget
-                .sentences
-                .iter()
-                .find(|s| s.starts_with(energy.name()))
-                .cloned()
-                .unwrap_or_default();
+                .reference_of(energy)
+                .is_some_and(|r| r.windows.impact.is_some())
+        {
+            let file = format!("budget-{name}-{}-phases.png", energy.name());
+            write_atomic(&dir.join(&file), &png_of(phase)?)?;
             charts.push(Figure {
                 file,
-                title: format!("Frame budget, {name}, {energy}"),
-                caption: format!(
-                    "The error the frameworks are ranked by ({}) against stepping time per frame on one thread, every stable setting of every framework ({} frames); the vertical line is the 5 ms budget. {sentence}",
-                    run.budget.reference_of(energy).map_or_else(
-                        || run.budget.rank_by.name().to_owned(),
-                        |r| run.budget.rank_by.describe(&r.windows)
-                    ),
-                    run.budget.frames
-                ),
+                title: format!("Frame budget windows, {name}, {energy}"),
+                caption: "The reference's kinetic energy, the soft tissue's peak von Mises stress and the total contact force, each over its largest value; the impact window runs from the first contact with an obstacle until the kinetic energy has fallen for good below the settle threshold, the sustained phase after it.".into(),
             });
-            if let Some((_, phase)) = phases.iter().find(|(e, _)| *e == energy)
-                && run
-                    .budget
-                    .reference_of(energy)
-                    .is_some_and(|r| r.windows.impact.is_some())
-            {
-                let file = format!("budget-{name}-{}-phases.png", energy.name());
-                write_atomic(&dir.join(&file), &png_of(phase)?)?;
-                charts.push(Figure {
-                    file,
-                    title: format!("Frame budget windows, {name}, {energy}"),
-                    caption: "The reference's kinetic energy, the soft tissue's peak von Mises stress and the total contact force, each over its largest value; the impact window runs from the first contact with an obstacle until the kinetic energy has fallen for good below the settle threshold, the sustained phase after it.".into(),
-                });
-            }
         }
-        out.push(CaseBudget {
-            name,
-            markdown: run.budget.to_markdown(),
-            charts,
-        });
     }
-    Ok(out)
+    Ok(CaseBudget {
+        name,
+        markdown: run.budget.to_markdown(),
+        charts,
+    })
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -419,7 +474,7 @@ fn page(
     }
 
     if !budgets.is_empty() {
-        h.push_str("<h2 id=\"budget\">Frame budget: 90 Hz, 5 ms per frame</h2>\n<p class=\"note\">Every energy x framework at every setting of its ladders (fixed counts and residual tolerances), each advancing 1/90 s per frame on one thread, compared frame by frame with a converged reference whose own error is stated: case A by its motion, case D by what a medic reads, the soft tissue's von Mises stress and the contact pressure, in the impact window and the sustained crush after it, with the bones' load (<code>fem2d budget</code>, docs/budget.md). Case C's scene is case A's with StVK, so its budget is case A's StVK table.</p>\n");
+        h.push_str("<h2 id=\"budget\">Frame budget: 90 Hz, 5 ms per frame</h2>\n<p class=\"note\">Every energy x framework at every setting of its ladders (fixed counts and residual tolerances), each advancing 1/90 s per frame on one thread, compared frame by frame with a converged reference whose own error is stated: case A by its motion, case D by what a medic reads, the soft tissue's von Mises stress and the contact pressure, in the impact window and the sustained crush after it, with the bones' load (<code>fem2d budget</code>, docs/budget.md). Case C's scene is case A's with StVK, so its budget is case A's StVK table. Case A in 3D is case A's mesh extruded (20 x 4 x 4 cubes of 6 tetrahedra) under the same frameworks, Neo-Hookean; a framework without a 3D path says so.</p>\n");
         for b in budgets {
             let _ = writeln!(h, "<h3>{}</h3>", b.name);
             let mut items = String::new();

@@ -27,6 +27,8 @@ pub trait Cell:
         + 'static;
     /// What the cell is called in messages: `triangle`, `tetrahedron`.
     const NAME: &'static str;
+    /// Its plural: `triangles`, `tetrahedra`.
+    const PLURAL: &'static str;
     /// Its signed measure at positions `x` (area in m^2, volume in m^3); at most 0 when
     /// inverted or flat.
     fn measure(self, x: &[Self::Point]) -> f64;
@@ -35,6 +37,7 @@ pub trait Cell:
 impl Cell for [u32; 3] {
     type Point = [f64; 2];
     const NAME: &'static str = "triangle";
+    const PLURAL: &'static str = "triangles";
     fn measure(self, x: &[[f64; 2]]) -> f64 {
         let (a, b, c) = (
             x[self[0] as usize],
@@ -48,6 +51,7 @@ impl Cell for [u32; 3] {
 impl Cell for [u32; 4] {
     type Point = [f64; 3];
     const NAME: &'static str = "tetrahedron";
+    const PLURAL: &'static str = "tetrahedra";
     fn measure(self, x: &[[f64; 3]]) -> f64 {
         let p = self.map(|i| x[i as usize]);
         let e = |k: usize| [0, 1, 2].map(|c| p[k][c] - p[0][c]);

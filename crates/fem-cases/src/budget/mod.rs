@@ -66,7 +66,7 @@ use serde::{Deserialize, Serialize};
 
 pub use measure::{Cell, Errors, Layout, Phase, Trajectory, WindowErrors, Windows, errors};
 use subject::{OverCap, Recorded, Subject};
-pub use table::drawable;
+pub use table::{dimensions_sentence, drawable};
 
 /// The frameworks a budget compares. Serde and command-line names: [`Framework::name`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
@@ -706,6 +706,10 @@ pub const PREFLIGHT_SECONDS_PER_STEP_TRIANGLE: f64 = 2e-7;
 /// D's 1.7e-5 s.
 pub const PREFLIGHT_SECONDS_PER_STEP_TRIANGLE_CONTACT: f64 = 4e-6;
 
+/// The same for a 3D scene, per tetrahedron: a quarter of case-a-3d's Neo-Hookean reference
+/// on this VM (about 7e-6 s per step and tetrahedron; StVK's 1.6e-5 s).
+pub const PREFLIGHT_SECONDS_PER_STEP_TETRAHEDRON: f64 = 1.5e-6;
+
 /// A ladder's estimated cost in runs at the budget (`budget x frames` of stepping): it climbs
 /// until a rung costs twice the budget, and the run around the stepping (recording, errors)
 /// adds to it. Measured: 4.7 on case D (16 ladders, 27 s), where the ladders are cut by cost.
@@ -723,8 +727,6 @@ struct Plan {
     frames: u64,
     /// Steps per frame of the (finer) reference.
     reference_per_frame: u64,
-    /// The scene has a ground or obstacles.
-    contact: bool,
 }
 
 /// Where the simulated duration came from, for messages.
@@ -910,7 +912,6 @@ impl Plan {
             frame_dt,
             frames: count as u64,
             reference_per_frame,
-            contact,
         })
     }
 }
@@ -934,10 +935,10 @@ struct TimeModel {
     frames: u64,
     budget_s: f64,
     cells: usize,
-    /// `triangle` or `tetrahedron`.
+    /// `triangles` or `tetrahedra`.
     cell_name: &'static str,
     reference_steps: u64,
-    /// The pre-flight's cost of a reference step per triangle.
+    /// The pre-flight's cost of a reference step per cell.
     seconds_per_step_triangle: f64,
     /// Ladders per energy (none for a framework that cannot run it).
     ladders: Vec<usize>,
@@ -965,13 +966,9 @@ impl TimeModel {
             frames: plan.frames,
             budget_s: spec.budget_ms * 1e-3,
             cells: base.cells()?,
-            cell_name: S::Cell::NAME,
+            cell_name: S::Cell::PLURAL,
             reference_steps: plan.frames * plan.reference_per_frame,
-            seconds_per_step_triangle: if plan.contact {
-                PREFLIGHT_SECONDS_PER_STEP_TRIANGLE_CONTACT
-            } else {
-                PREFLIGHT_SECONDS_PER_STEP_TRIANGLE
-            },
+            seconds_per_step_triangle: base.preflight_seconds_per_step_cell(),
             ladders,
             max_minutes: spec.max_minutes,
         })
@@ -999,7 +996,7 @@ impl TimeModel {
             self.energies(0, reference_s),
             &format!(
                 "estimated before running, from the step counts: {} x (a reference of {} \
-                 steps on {} {}s + up to {} ladders of settings over {} frames)",
+                 steps on {} {} + up to {} ladders of settings over {} frames)",
                 match self.ladders.len() {
                     1 => "1 energy".to_owned(),
                     n => format!("{n} energies"),

@@ -53,6 +53,8 @@ pub(super) trait Subject: Sized + Sync {
     fn rank_default(&self) -> RankBy;
     /// Its cell count.
     fn cells(&self) -> Result<usize, SceneError>;
+    /// The pre-flight's seconds per reference step and cell ([`super::TimeModel`]).
+    fn preflight_seconds_per_step_cell(&self) -> f64;
     /// Why `framework` cannot run it with `energy`, if it cannot.
     fn cannot_run(&self, energy: EnergyKind, framework: Framework) -> Option<String>;
     /// The settings `framework` climbs on it.
@@ -115,6 +117,14 @@ impl Subject for LoadedScene {
     fn cells(&self) -> Result<usize, SceneError> {
         let mesh = fem_scene::build::build_mesh(self, &FileSource::for_scene(self))?;
         Ok(mesh.triangles().len())
+    }
+
+    fn preflight_seconds_per_step_cell(&self) -> f64 {
+        if self.contact() {
+            super::PREFLIGHT_SECONDS_PER_STEP_TRIANGLE_CONTACT
+        } else {
+            super::PREFLIGHT_SECONDS_PER_STEP_TRIANGLE
+        }
     }
 
     fn cannot_run(&self, energy: EnergyKind, framework: Framework) -> Option<String> {
@@ -260,6 +270,10 @@ impl Subject for LoadedScene3 {
     fn cells(&self) -> Result<usize, SceneError> {
         let m = &self.scene.mesh;
         Ok(6 * m.nx * m.ny * m.nz)
+    }
+
+    fn preflight_seconds_per_step_cell(&self) -> f64 {
+        super::PREFLIGHT_SECONDS_PER_STEP_TETRAHEDRON
     }
 
     fn cannot_run(&self, energy: EnergyKind, framework: Framework) -> Option<String> {

@@ -900,3 +900,76 @@ fn csv_field(s: &str) -> std::borrow::Cow<'_, str> {
         s.into()
     }
 }
+
+/// One sentence setting the budget of a 2D scene beside that of its 3D counterpart for
+/// `energy`: each dimension's ranking of the frameworks with a setting within the budget (best
+/// first, with its setting and ranking value), whether the order of the frameworks both rank
+/// is the same, and implicit Euler's cheapest stable cost per frame in each.
+pub fn dimensions_sentence(two: &Budget, three: &Budget, energy: EnergyKind) -> String {
+    let ranked = |b: &Budget| -> Vec<(Framework, String)> {
+        b.rows
+            .iter()
+            .filter(|r| r.energy == energy)
+            .filter_map(|r| {
+                let t = r.best.as_ref()?;
+                Some((
+                    r.framework,
+                    format!(
+                        "{} ({}, {})",
+                        r.framework.name(),
+                        t.setting,
+                        rank_text(b.rank_by, t.rank_value)
+                    ),
+                ))
+            })
+            .collect()
+    };
+    let (r2, r3) = (ranked(two), ranked(three));
+    let list = |r: &[(Framework, String)]| {
+        if r.is_empty() {
+            "none".to_owned()
+        } else {
+            r.iter()
+                .map(|(_, s)| s.as_str())
+                .collect::<Vec<_>>()
+                .join(" > ")
+        }
+    };
+    let common = |a: &[(Framework, String)], b: &[(Framework, String)]| -> Vec<Framework> {
+        a.iter()
+            .map(|(f, _)| *f)
+            .filter(|f| b.iter().any(|(g, _)| g == f))
+            .collect()
+    };
+    let (c2, c3) = (common(&r2, &r3), common(&r3, &r2));
+    let verdict = if r2.first().map(|x| x.0) == r3.first().map(|x| x.0) && c2 == c3 {
+        "the 2D ranking holds in 3D".to_owned()
+    } else if r2.first().map(|x| x.0) == r3.first().map(|x| x.0) {
+        "the winner holds in 3D, the order behind it does not".to_owned()
+    } else {
+        "the 2D ranking does not hold in 3D".to_owned()
+    };
+    let implicit = |b: &Budget| {
+        b.rows
+            .iter()
+            .find(|r| r.energy == energy && r.framework == Framework::Implicit)
+            .and_then(|r| r.cheapest.as_ref())
+            .map_or("-".to_owned(), |t| {
+                format!("{} ms", fmt_num(t.ms_per_frame))
+            })
+    };
+    format!(
+        "{energy}, {} in 2D against {} in 3D at {} Hz within {} ms per frame, ranked by {}: \
+         {verdict}. 2D: {}. 3D: {}. Implicit Euler's cheapest stable setting costs {} per \
+         frame in 2D and {} in 3D.",
+        two.scene,
+        three.scene,
+        fmt_num(two.fps),
+        fmt_num(two.budget_ms),
+        two.rank_by.name(),
+        list(&r2),
+        list(&r3),
+        implicit(two),
+        implicit(three)
+    )
+}

@@ -51,6 +51,9 @@ fn report_has_every_section_and_picture() {
         "Frame budget: 90 Hz, 5 ms per frame",
         "neo-hookean at 90 Hz within 5 ms per frame, ranked by the soft tissue's von Mises stress in the sustained phase",
         "Frame budget windows, case-d",
+        "neo-hookean, case-a in 2D against case-a-3d in 3D at 90 Hz within 5 ms per frame",
+        "cannot run: linear-implicit has no 3D path yet",
+        "Cost of a frame against mesh size, 2D and 3D",
         "Run metadata",
         "Wall time",
         "cores available",
@@ -65,9 +68,10 @@ fn report_has_every_section_and_picture() {
         images_in(&html),
         "an image is not embedded"
     );
-    // 6 figures (case A in 2D and in 3D) + 2 curve charts + the stability map + 5 frame-budget
-    // charts (case A's three energies, case D's and its windows) + 4 animations.
-    assert_eq!(images_in(&html), 18);
+    // 6 figures (case A in 2D and in 3D) + 2 curve charts + the stability map + 6 frame-budget
+    // charts (case A's three energies, case D's and its windows, case A in 3D) + the cost
+    // against mesh size + 4 animations.
+    assert_eq!(images_in(&html), 20);
     for file in [
         "figure-1-mesh-pipeline.png",
         "figure-2-case-a.png",
@@ -84,6 +88,8 @@ fn report_has_every_section_and_picture() {
         "animation-case-d.gif",
         "budget-case-a-stvk.png",
         "budget-case-d-neo-hookean.png",
+        "budget-case-a-3d-neo-hookean.png",
+        "budget-scaling.png",
     ] {
         let path = dir.join("figures").join(file);
         let size = std::fs::metadata(&path)
