@@ -6,6 +6,11 @@
 //!
 //! Each row is the scene changed as a typed value (energy, solver, parameters), never through
 //! its text.
+//!
+//! [`compare`] runs a 2D scene, [`compare3`] a 3D one (`dim = 3`): the same matrix and the
+//! same [`Comparison`], with three-component probes and the tetrahedron count in
+//! [`Comparison::triangles`]. A combination that cannot run in 3D (a solver without a 3D path,
+//! an option the 3D path refuses) is a row with its error, as in 2D.
 
 use std::fmt::Write as _;
 
@@ -14,9 +19,11 @@ use fem_solvers::{Clock, SolverKind};
 use serde::{Deserialize, Serialize};
 
 use crate::run::{RunOptions, RunResult, run_scene};
+use crate::solid::{RunOptions3, run_scene3};
 use fem_scene::SceneError;
 use fem_scene::SolverSpec;
 use fem_scene::scene::LoadedScene;
+use fem_scene::solid::{LoadedScene3, RunResult3};
 
 /// Values of one solver parameter to compare: rows are made for each value, for the solvers
 /// that have the parameter (`iterations` for PBD and XPBD, `xpbd_form` for XPBD).
@@ -53,7 +60,7 @@ pub struct CompareSpec {
     /// Worker threads per run.
     pub threads: Option<usize>,
     /// Keep each row's run, with every `n`-th frame as a snapshot, in [`Comparison::runs`]
-    /// (for pictures). `None`: keep nothing.
+    /// (for pictures). `None`: keep nothing. 2D only: [`compare3`] refuses it.
     pub snapshot_every: Option<usize>,
 }
 
@@ -70,7 +77,8 @@ pub struct CompareRow {
     pub stable: bool,
     /// Steps completed.
     pub steps_completed: u64,
-    /// Per probe: name, final displacement `[ux, uy]` (m), smallest uy (m).
+    /// Per probe: name, final displacement `[ux, uy]` (`[ux, uy, uz]` in 3D; m), smallest uy
+    /// (m).
     pub probes: Vec<ProbeCell>,
     /// Peak per-element von Mises over the recorded frames, Pa.
     pub max_von_mises: f64,
@@ -93,8 +101,8 @@ pub struct CompareRow {
 pub struct ProbeCell {
     /// Probe name.
     pub name: String,
-    /// Final displacement, m.
-    pub final_displacement: [f64; 2],
+    /// Final displacement, m: `[ux, uy]` in 2D, `[ux, uy, uz]` in 3D.
+    pub final_displacement: Vec<f64>,
     /// Smallest vertical displacement over the run, m.
     pub min_uy: f64,
     /// Root-mean-square distance of the displacement curve from the explicit run of the same
@@ -107,8 +115,12 @@ pub struct ProbeCell {
 pub struct Comparison {
     /// Scene name.
     pub scene: String,
-    /// Triangles of the mesh.
+    /// Cells of the mesh: triangles in 2D, tetrahedra in 3D (see [`Comparison::dim`]).
     pub triangles: usize,
+    /// The scene's dimension, 2 or 3 (the probes' component count). Written to JSON in 3D
+    /// only, so a 2D comparison's JSON has no `dim` key; read as 2 when absent.
+    #[serde(default = "two", skip_serializing_if = "is_two")]
+    pub dim: u8,
     /// The solver the scene itself names (the one a case's targets are stated for).
     pub scene_solver: SolverKind,
     /// Time step, s.
@@ -122,7 +134,7 @@ pub struct Comparison {
     #[serde(skip)]
     pub curves: Vec<Curves>,
     /// Each row's run when [`CompareSpec::snapshot_every`] is set (`None` for rows that could
-    /// not run); empty otherwise.
+    /// not run); empty otherwise (always empty in 3D).
     #[serde(skip)]
     pub runs: Vec<Option<RunResult>>,
 }
@@ -132,98 +144,243 @@ pub struct Comparison {
 pub struct Curves {
     /// Frame times, s.
     pub times: Vec<f64>,
-    /// `(probe name, displacement per frame)`.
-    pub probes: Vec<(String, Vec<[f64; 2]>)>,
+    /// `(probe name, displacement per frame)`: `[ux, uy]` in 2D, `[ux, uy, uz]` in 3D.
+    pub probes: Vec<(String, Vec<Vec<f64>>)>,
+}
+
+fn two() -> u8 {
+    2
+}
+
+fn is_two(dim: &u8) -> bool {
+    *dim == 2
+}
+
+/// What the matrix takes from one run of either dimension.
+struct RowRun {
+    /// Cells of the mesh.
+    cells: usize,
+    /// Frame times and probe curves.
+    curves: Curves,
+    /// Per probe (in the order of `curves.probes`): final displacement and smallest uy.
+    finals: Vec<(Vec<f64>, f64)>,
+    blew_up: bool,
+    blow_up_message: Option<String>,
+    steps_completed: u64,
+    max_von_mises: f64,
+    min_det_f: f64,
+    inverted_elements: usize,
+    step_seconds: f64,
+    element_steps_per_second: f64,
+    real_time_factor: f64,
+}
+
+impl RowRun {
+    fn from_2d(result: &RunResult) -> Self {
+        let s = &result.summary;
+        RowRun {
+            cells: s.triangles,
+            curves: Curves {
+                times: result.frame_times.iter().map(|f| f.1).collect(),
+                probes: result
+                    .probes
+                    .iter()
+                    .zip(&result.probe_series)
+                    .map(|(p, series)| {
+                        (p.name.clone(), series.iter().map(|u| u.to_vec()).collect())
+                    })
+                    .collect(),
+            },
+            finals: s
+                .probes
+                .iter()
+                .map(|ps| (ps.final_displacement.to_vec(), ps.uy_range[0]))
+                .collect(),
+            blew_up: s.blew_up,
+            blow_up_message: s.blow_up_message.clone(),
+            steps_completed: s.steps_completed,
+            max_von_mises: s.max_von_mises,
+            min_det_f: s.min_det_f,
+            inverted_elements: s.inverted_elements,
+            step_seconds: s.step_seconds,
+            element_steps_per_second: s.element_steps_per_second,
+            real_time_factor: s.real_time_factor,
+        }
+    }
+
+    fn from_3d(result: &RunResult3) -> Self {
+        let s = &result.summary;
+        let series = |k: usize| -> Vec<Vec<f64>> {
+            result
+                .probe_rows
+                .iter()
+                .map(|(_, _, row)| row[k].to_vec())
+                .collect()
+        };
+        RowRun {
+            cells: s.tetrahedra,
+            curves: Curves {
+                times: result.probe_rows.iter().map(|r| r.1).collect(),
+                probes: s
+                    .probes
+                    .iter()
+                    .enumerate()
+                    .map(|(k, p)| (p.name.clone(), series(k)))
+                    .collect(),
+            },
+            // The smallest uy over the recorded frames, as 2D's `uy_range`.
+            finals: s
+                .probes
+                .iter()
+                .enumerate()
+                .map(|(k, p)| {
+                    let min_uy = result
+                        .probe_rows
+                        .iter()
+                        .fold(f64::INFINITY, |m, (_, _, row)| m.min(row[k][1]));
+                    (p.final_displacement.to_vec(), min_uy)
+                })
+                .collect(),
+            blew_up: s.blew_up,
+            blow_up_message: s.blow_up_message.clone(),
+            steps_completed: s.steps_completed,
+            max_von_mises: s.max_von_mises,
+            min_det_f: s.min_det_f,
+            inverted_elements: s.inverted_elements,
+            step_seconds: s.step_seconds,
+            element_steps_per_second: s.element_steps_per_second,
+            real_time_factor: s.real_time_factor,
+        }
+    }
 }
 
 /// Run the matrix on `base`: each row is `base` with the row's energy, solver and variant set
 /// (typed), validated again.
 pub fn compare(base: &LoadedScene, spec: &CompareSpec) -> Result<Comparison, SceneError> {
+    let options = RunOptions {
+        threads: spec.threads,
+        snapshot_every: spec.snapshot_every,
+        ..RunOptions::default()
+    };
+    let mut runs = Vec::new();
+    let (rows, curves, cells) = matrix(spec, |energy, solver, settings| {
+        let outcome = variant_scene(base, energy, solver, settings)
+            .and_then(|scene| run_scene(&scene, &options));
+        if spec.snapshot_every.is_some() {
+            runs.push(outcome.as_ref().ok().cloned());
+        }
+        outcome.map(|result| RowRun::from_2d(&result))
+    });
+    Ok(Comparison {
+        scene: base.scene.name.clone(),
+        scene_solver: base.scene.solver.kind,
+        triangles: cells.unwrap_or(0),
+        dim: 2,
+        // dt and steps as the scene gives them (a static row reports load increments as its
+        // steps).
+        dt: base.scene.solver.dt,
+        steps: base.scene.solver.steps,
+        rows,
+        curves,
+        runs,
+    })
+}
+
+/// Run the matrix on a 3D scene: each row is `base` with the row's energy, solver and variant
+/// set (typed), validated again, and run by [`run_scene3`] on `spec.threads`. A combination
+/// that cannot run (a solver without a 3D path, such as linear-implicit; an option the 3D path
+/// refuses, such as `integrator = "bdf2"`; an energy's parameter domain) is a row with its
+/// `error`, not stable, as in 2D. The probes have three components; [`Comparison::triangles`]
+/// counts tetrahedra and [`Comparison::dim`] is 3. Errors: `spec.snapshot_every` (no pictures
+/// of 3D comparisons yet).
+pub fn compare3(base: &LoadedScene3, spec: &CompareSpec) -> Result<Comparison, SceneError> {
+    if spec.snapshot_every.is_some() {
+        return Err(SceneError::Usage(format!(
+            "{}: snapshots of a comparison are not available for 3D scenes yet",
+            base.origin
+        )));
+    }
+    let options = RunOptions3 {
+        threads: spec.threads,
+        ..RunOptions3::default()
+    };
+    let (rows, curves, cells) = matrix(spec, |energy, solver, settings| {
+        variant_scene3(base, energy, solver, settings)
+            .and_then(|scene| run_scene3(&scene, &options, None))
+            .map(|result| RowRun::from_3d(&result))
+    });
+    Ok(Comparison {
+        scene: base.scene.name.clone(),
+        scene_solver: base.scene.solver.kind,
+        triangles: cells.unwrap_or(0),
+        dim: 3,
+        dt: base.scene.solver.dt,
+        steps: base.scene.solver.steps,
+        rows,
+        curves,
+        runs: Vec::new(),
+    })
+}
+
+/// The rows of the matrix, each run by `run` (the scene of one energy, solver and settings),
+/// their curves, and the cell count of the first run that ran.
+fn matrix(
+    spec: &CompareSpec,
+    mut run: impl FnMut(EnergyKind, SolverKind, &Settings) -> Result<RowRun, SceneError>,
+) -> (Vec<CompareRow>, Vec<Curves>, Option<usize>) {
     // The reference of the RMS columns: the default solver (explicit) of the same energy.
     let reference = SolverKind::default();
     let mut rows = Vec::new();
-    let mut header = None;
+    let mut cells = None;
     let mut curves = Vec::new();
-    let mut runs = Vec::new();
     for &energy in &spec.energies {
-        let mut explicit: Option<RunResult> = None;
+        let mut explicit: Option<Curves> = None;
         for &solver in &spec.solvers {
             for (variant, settings) in variants(solver, spec) {
-                let outcome = variant_scene(base, energy, solver, &settings).and_then(|scene| {
-                    run_scene(
-                        &scene,
-                        &RunOptions {
-                            threads: spec.threads,
-                            snapshot_every: spec.snapshot_every,
-                            ..RunOptions::default()
-                        },
-                    )
-                });
-                let row = match outcome {
-                    Ok(result) => {
-                        curves.push(Curves {
-                            times: result.frame_times.iter().map(|f| f.1).collect(),
-                            probes: result
-                                .probes
-                                .iter()
-                                .zip(&result.probe_series)
-                                .map(|(p, series)| (p.name.clone(), series.clone()))
-                                .collect(),
-                        });
-                        let s = &result.summary;
-                        // dt and steps as the scene gives them (a static row reports load
-                        // increments as its steps).
-                        header.get_or_insert((
-                            s.triangles,
-                            base.scene.solver.dt,
-                            base.scene.solver.steps,
-                        ));
-                        let probes = result
+                let row = match run(energy, solver, &settings) {
+                    Ok(r) => {
+                        cells.get_or_insert(r.cells);
+                        let probes = r
+                            .curves
                             .probes
                             .iter()
-                            .zip(&result.probe_series)
-                            .zip(&s.probes)
-                            .map(|((p, series), ps)| ProbeCell {
-                                name: p.name.clone(),
-                                final_displacement: ps.final_displacement,
-                                min_uy: ps.uy_range[0],
+                            .zip(&r.finals)
+                            .map(|((name, series), (last, min_uy))| ProbeCell {
+                                name: name.clone(),
+                                final_displacement: last.clone(),
+                                min_uy: *min_uy,
                                 // A static run's frames are load increments, not times:
                                 // no curve to compare with explicit's.
                                 rms_vs_explicit: explicit
                                     .as_ref()
                                     .filter(|_| solver.capabilities().clock == Clock::Time)
-                                    .and_then(|e| e.probe(&p.name))
-                                    .map(|reference| rms_distance(series, reference)),
+                                    .and_then(|e| e.probes.iter().find(|(n, _)| n == name))
+                                    .map(|(_, reference)| rms_distance(series, reference)),
                             })
                             .collect();
                         let row = CompareRow {
                             energy,
                             solver,
                             variant: variant.clone(),
-                            stable: !s.blew_up,
-                            steps_completed: s.steps_completed,
+                            stable: !r.blew_up,
+                            steps_completed: r.steps_completed,
                             probes,
-                            max_von_mises: s.max_von_mises,
-                            min_det_f: s.min_det_f,
-                            inverted_elements: s.inverted_elements,
-                            step_seconds: s.step_seconds,
-                            element_steps_per_second: s.element_steps_per_second,
-                            real_time_factor: s.real_time_factor,
-                            error: s.blow_up_message.clone(),
+                            max_von_mises: r.max_von_mises,
+                            min_det_f: r.min_det_f,
+                            inverted_elements: r.inverted_elements,
+                            step_seconds: r.step_seconds,
+                            element_steps_per_second: r.element_steps_per_second,
+                            real_time_factor: r.real_time_factor,
+                            error: r.blow_up_message,
                         };
-                        if spec.snapshot_every.is_some() {
-                            runs.push(Some(result.clone()));
+                        if solver == reference && explicit.is_none() && !r.blew_up {
+                            explicit = Some(r.curves.clone());
                         }
-                        if solver == reference && explicit.is_none() && !s.blew_up {
-                            explicit = Some(result);
-                        }
+                        curves.push(r.curves);
                         row
                     }
                     Err(e) => {
                         curves.push(Curves::default());
-                        if spec.snapshot_every.is_some() {
-                            runs.push(None);
-                        }
                         CompareRow {
                             energy,
                             solver,
@@ -245,18 +402,7 @@ pub fn compare(base: &LoadedScene, spec: &CompareSpec) -> Result<Comparison, Sce
             }
         }
     }
-    let (triangles, dt, steps) =
-        header.unwrap_or((0, base.scene.solver.dt, base.scene.solver.steps));
-    Ok(Comparison {
-        scene: base.scene.name.clone(),
-        scene_solver: base.scene.solver.kind,
-        triangles,
-        dt,
-        steps,
-        rows,
-        curves,
-        runs,
-    })
+    (rows, curves, cells)
 }
 
 /// `base` with the energy, the solver and the parameter settings of one row, validated.
@@ -266,6 +412,28 @@ pub(crate) fn variant_scene(
     solver: SolverKind,
     settings: &Settings,
 ) -> Result<LoadedScene, SceneError> {
+    let mut scene = base.clone();
+    scene.scene.energy = energy;
+    scene.scene.solver.kind = solver;
+    for (key, value) in settings {
+        scene
+            .scene
+            .solver
+            .set(key, value.clone())
+            .map_err(|e| SceneError::Scene(format!("{}: {e}", scene.origin)))?;
+    }
+    scene.validate()?;
+    Ok(scene)
+}
+
+/// [`variant_scene`] of a 3D scene: `base` with the energy, the solver and the parameter
+/// settings of one row, validated (a solver without a 3D path is refused here).
+pub(crate) fn variant_scene3(
+    base: &LoadedScene3,
+    energy: EnergyKind,
+    solver: SolverKind,
+    settings: &Settings,
+) -> Result<LoadedScene3, SceneError> {
     let mut scene = base.clone();
     scene.scene.energy = energy;
     scene.scene.solver.kind = solver;
@@ -309,8 +477,10 @@ fn variants(solver: SolverKind, spec: &CompareSpec) -> Vec<(String, Settings)> {
         .collect()
 }
 
-/// RMS of `|a_k - b_k|` over the common prefix of two displacement series, m.
-pub fn rms_distance(a: &[[f64; 2]], b: &[[f64; 2]]) -> f64 {
+/// RMS of `|a_k - b_k|` over the common prefix of two displacement series, m. The samples
+/// have any number of components (`[ux, uy]`, `[ux, uy, uz]`; the common ones count): per
+/// sample `dx^2 + dy^2 (+ dz^2)` in component order, summed over the samples in order.
+pub fn rms_distance<P: AsRef<[f64]>, Q: AsRef<[f64]>>(a: &[P], b: &[Q]) -> f64 {
     let n = a.len().min(b.len());
     if n == 0 {
         return f64::NAN;
@@ -319,7 +489,16 @@ pub fn rms_distance(a: &[[f64; 2]], b: &[[f64; 2]]) -> f64 {
         .iter()
         .zip(b)
         .take(n)
-        .map(|(p, q)| (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2))
+        .map(|(p, q)| {
+            let (p, q) = (p.as_ref(), q.as_ref());
+            // The first square alone, then the others added in order: in 2D exactly
+            // `(p[0] - q[0])^2 + (p[1] - q[1])^2`.
+            p.iter()
+                .zip(q)
+                .map(|(x, y)| (x - y).powi(2))
+                .reduce(|s, d| s + d)
+                .unwrap_or(0.0)
+        })
         .sum();
     (sum / n as f64).sqrt()
 }
@@ -333,26 +512,50 @@ impl Comparison {
             .unwrap_or_default()
     }
 
-    /// A markdown table (displacements in mm, stress in Pa).
+    /// The displacement components' names: `ux, uy` in 2D, `ux, uy, uz` in 3D.
+    fn components(&self) -> &'static [&'static str] {
+        if self.dim == 3 {
+            &["ux", "uy", "uz"]
+        } else {
+            &["ux", "uy"]
+        }
+    }
+
+    /// A markdown table (displacements in mm, stress in Pa). In 3D each probe has a `uz`
+    /// column after `uy`, and the header counts tetrahedra.
     pub fn to_markdown(&self) -> String {
         let names = self.probe_names();
+        let comps = self.components();
         let with_rms = self
             .rows
             .iter()
             .any(|r| r.probes.iter().any(|p| p.rms_vs_explicit.is_some()));
         let mut out = format!(
-            "Scene `{}`: {} triangles, dt = {:e} s, {} steps. Displacements in mm (final ux, uy; lowest uy over the run).\n\n",
-            self.scene, self.triangles, self.dt, self.steps
+            "Scene `{}`: {} {}, dt = {:e} s, {} steps. Displacements in mm (final {}; lowest uy over the run).\n\n",
+            self.scene,
+            self.triangles,
+            if self.dim == 3 {
+                "tetrahedra"
+            } else {
+                "triangles"
+            },
+            self.dt,
+            self.steps,
+            comps.join(", ")
         );
         out.push_str("| energy | solver | variant | stable |");
         for n in &names {
-            let _ = write!(out, " {n} ux | {n} uy | {n} min uy |");
+            for c in comps {
+                let _ = write!(out, " {n} {c} |");
+            }
+            let _ = write!(out, " {n} min uy |");
             if with_rms {
                 let _ = write!(out, " {n} RMS vs explicit |");
             }
         }
         out.push_str(" max von Mises (Pa) | min det F | step time (s) | element-steps/s | real-time factor |\n|");
-        let cols = 4 + names.len() * (3 + usize::from(with_rms)) + 5;
+        let per_probe = comps.len() + 1 + usize::from(with_rms);
+        let cols = 4 + names.len() * per_probe + 5;
         out.push_str(&"---|".repeat(cols));
         out.push('\n');
         for r in &self.rows {
@@ -367,13 +570,15 @@ impl Comparison {
             for n in &names {
                 match r.probes.iter().find(|p| &p.name == n) {
                     Some(p) => {
-                        let _ = write!(
-                            out,
-                            " {:.1} | {:.1} | {:.1} |",
-                            1e3 * p.final_displacement[0],
-                            1e3 * p.final_displacement[1],
-                            1e3 * p.min_uy
-                        );
+                        for k in 0..comps.len() {
+                            match p.final_displacement.get(k) {
+                                Some(u) => {
+                                    let _ = write!(out, " {:.1} |", 1e3 * u);
+                                }
+                                None => out.push_str(" - |"),
+                            }
+                        }
+                        let _ = write!(out, " {:.1} |", 1e3 * p.min_uy);
                         if with_rms {
                             match p.rms_vs_explicit {
                                 Some(v) => {
@@ -383,7 +588,7 @@ impl Comparison {
                             }
                         }
                     }
-                    None => out.push_str(&" - |".repeat(3 + usize::from(with_rms))),
+                    None => out.push_str(&" - |".repeat(per_probe)),
                 }
             }
             let _ = writeln!(
@@ -413,12 +618,17 @@ impl Comparison {
         out
     }
 
-    /// CSV, one row per combination, SI units.
+    /// CSV, one row per combination, SI units. In 3D each probe has a `NAME.uz` column after
+    /// `NAME.uy`.
     pub fn to_csv(&self) -> String {
         let names = self.probe_names();
+        let comps = self.components();
         let mut out = String::from("energy,solver,variant,stable,steps_completed");
         for n in &names {
-            let _ = write!(out, ",{n}.ux,{n}.uy,{n}.min_uy,{n}.rms_vs_explicit");
+            for c in comps {
+                let _ = write!(out, ",{n}.{c}");
+            }
+            let _ = write!(out, ",{n}.min_uy,{n}.rms_vs_explicit");
         }
         out.push_str(",max_von_mises,min_det_f,inverted_elements,step_seconds,element_steps_per_second,real_time_factor,error\n");
         for r in &self.rows {
@@ -430,16 +640,22 @@ impl Comparison {
             for n in &names {
                 match r.probes.iter().find(|p| &p.name == n) {
                     Some(p) => {
+                        for k in 0..comps.len() {
+                            match p.final_displacement.get(k) {
+                                Some(u) => {
+                                    let _ = write!(out, ",{u}");
+                                }
+                                None => out.push(','),
+                            }
+                        }
                         let _ = write!(
                             out,
-                            ",{},{},{},{}",
-                            p.final_displacement[0],
-                            p.final_displacement[1],
+                            ",{},{}",
                             p.min_uy,
                             p.rms_vs_explicit.map(|v| v.to_string()).unwrap_or_default()
                         );
                     }
-                    None => out.push_str(",,,,"),
+                    None => out.push_str(&",".repeat(comps.len() + 2)),
                 }
             }
             let _ = writeln!(
@@ -458,7 +674,8 @@ impl Comparison {
     }
 
     /// The probe curves of every row side by side, one line per frame of the longest run:
-    /// `step`, then for each row and probe `ENERGY/SOLVER[/VARIANT]:PROBE.ux` and `.uy` (m);
+    /// `step`, then for each row and probe `ENERGY/SOLVER[/VARIANT]:PROBE.ux` and `.uy` (and
+    /// `.uz` in 3D; m);
     /// with `time` (s) taken from the row of that length. Rows that stopped early leave their
     /// later cells empty. For plotting tip curves of several solvers or energies on one chart.
     pub fn to_curves_csv(&self) -> String {
@@ -468,6 +685,7 @@ impl Comparison {
             .max_by_key(|c| c.times.len())
             .cloned()
             .unwrap_or_default();
+        let comps = self.components();
         let mut out = String::from("frame,time");
         for (r, c) in self.rows.iter().zip(&self.curves) {
             let label = if r.variant.is_empty() {
@@ -481,7 +699,9 @@ impl Comparison {
                 )
             };
             for (name, _) in &c.probes {
-                let _ = write!(out, ",{label}:{name}.ux,{label}:{name}.uy");
+                for comp in comps {
+                    let _ = write!(out, ",{label}:{name}.{comp}");
+                }
             }
         }
         out.push('\n');
@@ -489,11 +709,14 @@ impl Comparison {
             let _ = write!(out, "{k},{t}");
             for c in &self.curves {
                 for (_, series) in &c.probes {
-                    match series.get(k) {
-                        Some(u) => {
-                            let _ = write!(out, ",{},{}", u[0], u[1]);
+                    let u = series.get(k);
+                    for j in 0..comps.len() {
+                        match u.and_then(|u| u.get(j)) {
+                            Some(x) => {
+                                let _ = write!(out, ",{x}");
+                            }
+                            None => out.push(','),
                         }
-                        None => out.push_str(",,"),
                     }
                 }
             }

@@ -28,7 +28,7 @@ pub fn load_scene_file(path: &Path, overrides: &[String]) -> Result<LoadedScene,
 pub fn load_case_or_file(arg: &str, overrides: &[String]) -> Result<LoadedScene, SceneError> {
     if fem_scene::solid::case_text_3d(arg).is_some() {
         return Err(SceneError::Usage(format!(
-            "`{arg}` is a 3D scene (dim = 3): only `fem2d run` takes 3D scenes yet"
+            "`{arg}` is a 3D scene (dim = 3): only `fem2d run`, `compare` and `budget` take 3D scenes yet"
         )));
     }
     if case_text(arg).is_some() {

@@ -18,6 +18,7 @@ use fem_scene::SceneError;
 use fem_solvers::SolverKind;
 use serde::{Deserialize, Serialize};
 
+use crate::budget::Framework;
 use crate::run::{RunOptions, run_scene};
 use crate::solid::{RunOptions3, run_scene3};
 
@@ -62,31 +63,23 @@ impl ScalingSpec {
     }
 }
 
-/// A solver measured: its kind, its setting in words and its `[solver]` keys.
-pub type Measured = (SolverKind, &'static str, Vec<(&'static str, toml::Value)>);
+/// A solver measured: its solver, its setting in words and its `[solver]` keys.
+pub type Measured = (SolverKind, String, Vec<(String, toml::Value)>);
 
-/// The three solvers measured and their settings.
+/// The three solvers measured and their settings: the frame budget's rungs of the same names
+/// ([`Framework::ladder`]).
 pub fn settings() -> Vec<Measured> {
-    vec![
-        (
-            SolverKind::Implicit,
-            "implicit, velocity 1e-2 m/s",
-            vec![("velocity_tolerance", toml::Value::Float(1e-2))],
-        ),
-        (
-            SolverKind::Xpbd,
-            "xpbd, 10 iterations",
-            vec![
-                ("substeps", toml::Value::Integer(1)),
-                ("iterations", toml::Value::Integer(10)),
-            ],
-        ),
-        (
-            SolverKind::Vbd,
-            "vbd, 10 iterations",
-            vec![("iterations", toml::Value::Integer(10))],
-        ),
+    [
+        (Framework::Implicit, "velocity 1e-2 m/s"),
+        (Framework::Xpbd, "10 iterations"),
+        (Framework::Vbd, "10 iterations"),
     ]
+    .into_iter()
+    .filter_map(|(f, label)| {
+        let rung = f.ladder().into_iter().find(|s| s.label == label)?;
+        Some((f.solver(), format!("{}, {label}", f.name()), rung.values))
+    })
+    .collect()
 }
 
 /// One measurement.
@@ -130,7 +123,7 @@ pub struct Scaling {
 /// `1 / fps`, recording only the first and last frame.
 fn overrides(
     solver: SolverKind,
-    values: &[(&str, toml::Value)],
+    values: &[(String, toml::Value)],
     spec: &ScalingSpec,
     mesh: &[(&str, usize)],
 ) -> Vec<String> {
@@ -177,7 +170,7 @@ pub fn scaling(spec: &ScalingSpec, mut progress: impl FnMut(&str)) -> Result<Sca
                     best = Some(Point {
                         dim: 2,
                         solver,
-                        setting: setting.to_owned(),
+                        setting: setting.clone(),
                         cells: vec![nx, ny],
                         elements: s.triangles,
                         unknowns: 2 * s.vertices,
@@ -213,7 +206,7 @@ pub fn scaling(spec: &ScalingSpec, mut progress: impl FnMut(&str)) -> Result<Sca
                     best = Some(Point {
                         dim: 3,
                         solver,
-                        setting: setting.to_owned(),
+                        setting: setting.clone(),
                         cells: vec![nx, ny, nz],
                         elements: s.tetrahedra,
                         unknowns: 3 * s.vertices,
@@ -347,5 +340,24 @@ impl Scaling {
             markers: true,
             ..LineChart::default()
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The three settings are found among the budget's rungs.
+    #[test]
+    fn the_settings_are_the_budgets_rungs() {
+        let names: Vec<String> = settings().into_iter().map(|m| m.1).collect();
+        assert_eq!(
+            names,
+            [
+                "implicit, velocity 1e-2 m/s",
+                "xpbd, 10 iterations",
+                "vbd, 10 iterations"
+            ]
+        );
     }
 }

@@ -564,7 +564,7 @@ pub fn parse_scene(
     let mut table = parse_table(text, origin, overrides)?;
     if dim_of(&table, origin)? == 3 {
         return Err(SceneError::Scene(format!(
-            "{origin}: dim = 3: a 3D scene runs with `fem2d run` (docs/scenes.md, 3D scenes); this tool takes 2D scenes"
+            "{origin}: dim = 3: a 3D scene runs with `fem2d run`, `compare` and `budget` (docs/scenes.md, 3D scenes); this tool takes 2D scenes"
         )));
     }
     table.remove("dim");

@@ -302,18 +302,7 @@ impl Subject for LoadedScene3 {
         dt: f64,
         steps: u64,
     ) -> Result<Self, SceneError> {
-        let mut scene = self.clone();
-        scene.scene.energy = energy;
-        scene.scene.solver.kind = solver;
-        for (key, value) in settings(values, dt, steps) {
-            scene
-                .scene
-                .solver
-                .set(&key, value)
-                .map_err(|e| SceneError::Scene(format!("{}: {e}", scene.origin)))?;
-        }
-        scene.validate()?;
-        Ok(scene)
+        crate::compare::variant_scene3(self, energy, solver, &settings(values, dt, steps))
     }
 
     fn record(

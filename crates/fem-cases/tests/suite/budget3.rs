@@ -131,3 +131,17 @@ fn cell_measures_are_signed_volumes_and_areas() {
     assert!(([0u32, 1, 2].measure(&y) - 3.0).abs() < 1e-15);
     assert!(([0u32, 2, 1].measure(&y) + 3.0).abs() < 1e-15);
 }
+
+/// A tool that takes 2D scenes only (the Python package, sweeps) refuses a built-in 3D case in
+/// one line naming the commands that take it.
+#[test]
+fn a_2d_only_tool_names_the_commands_that_take_3d_scenes() {
+    let e = fem_cases::files::load_case_or_file("case-a-3d", &[])
+        .err()
+        .unwrap()
+        .to_string();
+    assert_eq!(
+        e,
+        "`case-a-3d` is a 3D scene (dim = 3): only `fem2d run`, `compare` and `budget` take 3D scenes yet"
+    );
+}

@@ -4,6 +4,7 @@
 mod budget;
 mod budget3;
 mod cases;
+mod compare;
 mod figures;
 mod goldens;
 mod scene;

@@ -1,14 +1,20 @@
 //! `fem2d compare`: the energy x solver matrix on one scene, as markdown (printed), and
 //! optionally markdown, CSV and JSON files.
+//!
+//! The scene may be 2D or 3D (`dim = 3`, e.g. `case-a-3d`): its `dim` key decides
+//! ([`fem_cases::files::load_any`]), and a 3D scene runs the same matrix through
+//! [`fem_cases::compare::compare3`] (three-component probes; a solver without a 3D path is an
+//! error row). Every flag applies to both dimensions.
 
 use std::path::PathBuf;
 
 use clap::{Args, ValueEnum};
-use fem_cases::compare::{CompareSpec, VariantAxis, compare};
-use fem_cases::files::load_case_or_file;
+use fem_cases::compare::{CompareSpec, VariantAxis, compare, compare3};
+use fem_cases::files::load_any;
 use fem_cases::outdir::OutDir;
 use fem_cases::run::write_atomic;
 use fem_core::energy::EnergyKind;
+use fem_scene::solid::AnyScene;
 use fem_solvers::SolverKind;
 
 use super::run::SceneArgs;
@@ -115,8 +121,12 @@ pub fn run(args: &CompareArgs) -> Result<(), String> {
         snapshot_every: None,
     };
     // Fails before any run when the scene itself is bad.
-    let base = load_case_or_file(&args.scene.scene, &args.scene.set).map_err(|e| e.to_string())?;
-    let table = compare(&base, &spec).map_err(|e| e.to_string())?;
+    let base = load_any(&args.scene.scene, &args.scene.set).map_err(|e| e.to_string())?;
+    let table = match base {
+        AnyScene::Two(base) => compare(&base, &spec),
+        AnyScene::Three(base) => compare3(&base, &spec),
+    }
+    .map_err(|e| e.to_string())?;
     let md = table.to_markdown();
     print!("{md}");
     if let Some(target) = &args.out {
