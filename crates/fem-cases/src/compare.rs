@@ -414,14 +414,7 @@ pub(crate) fn variant_scene(
 ) -> Result<LoadedScene, SceneError> {
     let mut scene = base.clone();
     scene.scene.energy = energy;
-    scene.scene.solver.kind = solver;
-    for (key, value) in settings {
-        scene
-            .scene
-            .solver
-            .set(key, value.clone())
-            .map_err(|e| SceneError::Scene(format!("{}: {e}", scene.origin)))?;
-    }
+    set_solver(&mut scene.scene.solver, solver, settings, &scene.origin)?;
     scene.validate()?;
     Ok(scene)
 }
@@ -436,16 +429,25 @@ pub(crate) fn variant_scene3(
 ) -> Result<LoadedScene3, SceneError> {
     let mut scene = base.clone();
     scene.scene.energy = energy;
-    scene.scene.solver.kind = solver;
-    for (key, value) in settings {
-        scene
-            .scene
-            .solver
-            .set(key, value.clone())
-            .map_err(|e| SceneError::Scene(format!("{}: {e}", scene.origin)))?;
-    }
+    set_solver(&mut scene.scene.solver, solver, settings, &scene.origin)?;
     scene.validate()?;
     Ok(scene)
+}
+
+/// Set `spec`'s solver to `solver` with `settings` (of the scene at `origin`, for messages): the
+/// typed edit both dimensions' rows make.
+fn set_solver(
+    spec: &mut SolverSpec,
+    solver: SolverKind,
+    settings: &Settings,
+    origin: &str,
+) -> Result<(), SceneError> {
+    spec.kind = solver;
+    for (key, value) in settings {
+        spec.set(key, value.clone())
+            .map_err(|e| SceneError::Scene(format!("{origin}: {e}")))?;
+    }
+    Ok(())
 }
 
 /// Parameter settings of one row: `(key, value)` pairs.

@@ -139,6 +139,24 @@ fn overrides(
     o
 }
 
+/// The fastest of `repeats` measurements (`None` for none).
+fn fastest(
+    repeats: usize,
+    mut measure: impl FnMut() -> Result<Point, SceneError>,
+) -> Result<Option<Point>, SceneError> {
+    let mut best: Option<Point> = None;
+    for _ in 0..repeats {
+        let p = measure()?;
+        if best
+            .as_ref()
+            .is_none_or(|b| p.ms_per_frame < b.ms_per_frame)
+        {
+            best = Some(p);
+        }
+    }
+    Ok(best)
+}
+
 /// Run the matrix of `spec` (see the module docs); `progress` is told each point.
 pub fn scaling(spec: &ScalingSpec, mut progress: impl FnMut(&str)) -> Result<Scaling, SceneError> {
     if !(spec.fps.is_finite() && spec.fps > 0.0) || spec.frames == 0 || spec.repeats == 0 {
@@ -155,8 +173,7 @@ pub fn scaling(spec: &ScalingSpec, mut progress: impl FnMut(&str)) -> Result<Sca
                 "case-a",
                 &overrides(solver, &values, spec, &[("nx", nx), ("ny", ny)]),
             )?;
-            let mut best: Option<Point> = None;
-            for _ in 0..spec.repeats {
+            points.extend(fastest(spec.repeats, || {
                 let r = run_scene(
                     &scene,
                     &RunOptions {
@@ -164,23 +181,19 @@ pub fn scaling(spec: &ScalingSpec, mut progress: impl FnMut(&str)) -> Result<Sca
                         ..RunOptions::default()
                     },
                 )?;
-                let s = &r.summary;
-                let ms = 1e3 * s.step_seconds / spec.frames as f64;
-                if best.as_ref().is_none_or(|b| ms < b.ms_per_frame) {
-                    best = Some(Point {
-                        dim: 2,
-                        solver,
-                        setting: setting.clone(),
-                        cells: vec![nx, ny],
-                        elements: s.triangles,
-                        unknowns: 2 * s.vertices,
-                        ms_per_frame: ms,
-                        iterations_per_frame: s.solver_iterations as f64 / spec.frames as f64,
-                        failure: s.blow_up_message.clone(),
-                    });
-                }
-            }
-            points.extend(best);
+                let s = r.summary;
+                Ok(Point {
+                    dim: 2,
+                    solver,
+                    setting: setting.clone(),
+                    cells: vec![nx, ny],
+                    elements: s.triangles,
+                    unknowns: 2 * s.vertices,
+                    ms_per_frame: 1e3 * s.step_seconds / spec.frames as f64,
+                    iterations_per_frame: s.solver_iterations as f64 / spec.frames as f64,
+                    failure: s.blow_up_message,
+                })
+            })?);
         }
     }
     for (solver, setting, values) in settings() {
@@ -190,8 +203,7 @@ pub fn scaling(spec: &ScalingSpec, mut progress: impl FnMut(&str)) -> Result<Sca
                 "case-a-3d",
                 &overrides(solver, &values, spec, &[("nx", nx), ("ny", ny), ("nz", nz)]),
             )?;
-            let mut best: Option<Point> = None;
-            for _ in 0..spec.repeats {
+            points.extend(fastest(spec.repeats, || {
                 let r = run_scene3(
                     &scene,
                     &RunOptions3 {
@@ -200,23 +212,19 @@ pub fn scaling(spec: &ScalingSpec, mut progress: impl FnMut(&str)) -> Result<Sca
                     },
                     None,
                 )?;
-                let s = &r.summary;
-                let ms = 1e3 * s.step_seconds / spec.frames as f64;
-                if best.as_ref().is_none_or(|b| ms < b.ms_per_frame) {
-                    best = Some(Point {
-                        dim: 3,
-                        solver,
-                        setting: setting.clone(),
-                        cells: vec![nx, ny, nz],
-                        elements: s.tetrahedra,
-                        unknowns: 3 * s.vertices,
-                        ms_per_frame: ms,
-                        iterations_per_frame: s.iterations as f64 / spec.frames as f64,
-                        failure: s.blow_up_message.clone(),
-                    });
-                }
-            }
-            points.extend(best);
+                let s = r.summary;
+                Ok(Point {
+                    dim: 3,
+                    solver,
+                    setting: setting.clone(),
+                    cells: vec![nx, ny, nz],
+                    elements: s.tetrahedra,
+                    unknowns: 3 * s.vertices,
+                    ms_per_frame: 1e3 * s.step_seconds / spec.frames as f64,
+                    iterations_per_frame: s.iterations as f64 / spec.frames as f64,
+                    failure: s.blow_up_message,
+                })
+            })?);
         }
     }
     Ok(Scaling {

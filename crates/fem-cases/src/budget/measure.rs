@@ -161,17 +161,45 @@ mod nan_null {
     }
 }
 
+/// The budget's cost cap as a recorder applies it: the run is stopped (an error from the
+/// sink) at the first frame after `cap` seconds have passed since its first frame.
+pub(crate) struct CostCap {
+    cap: Option<f64>,
+    started: Option<std::time::Instant>,
+    /// The run was stopped by the cap.
+    pub over: bool,
+}
+
+impl CostCap {
+    fn new(cap: Option<f64>) -> Self {
+        CostCap {
+            cap,
+            started: None,
+            over: false,
+        }
+    }
+
+    /// Start the clock at the first frame; an error once the cap has passed.
+    fn check(&mut self) -> Result<(), SceneError> {
+        match (self.started, self.cap) {
+            (None, _) => self.started = Some(std::time::Instant::now()),
+            (Some(t0), Some(cap)) if t0.elapsed().as_secs_f64() > cap => {
+                self.over = true;
+                return Err(SceneError::Usage("over the budget's cost cap".into()));
+            }
+            _ => {}
+        }
+        Ok(())
+    }
+}
+
 /// A [`FrameSink`] filling a [`Trajectory`].
 pub(crate) struct Recorder {
     pub trajectory: Trajectory,
     /// The mesh and its regions, from the first frame (targets and frame step left empty).
     pub layout: Layout,
-    /// Stop the run (an error from the sink) once this many seconds passed since the first
-    /// frame.
-    cap: Option<f64>,
-    started: Option<std::time::Instant>,
-    /// The run was stopped by the cap.
-    pub over_cap: bool,
+    /// Stops the run once it passed the budget's cost cap.
+    pub cap: CostCap,
     /// Lumped vertex masses, kg per metre (sized on the first frame).
     masses: Vec<f64>,
     edges: Vec<[u32; 2]>,
@@ -187,9 +215,7 @@ impl Recorder {
         Recorder {
             trajectory: Trajectory::default(),
             layout: Layout::default(),
-            cap,
-            started: None,
-            over_cap: false,
+            cap: CostCap::new(cap),
             masses: Vec::new(),
             edges: Vec::new(),
             mine: Vec::new(),
@@ -203,14 +229,7 @@ impl Recorder {
 impl FrameSink for Recorder {
     fn frame(&mut self, f: &Frame<'_>) -> Result<(), SceneError> {
         use fem_solvers::ContactKind;
-        match (self.started, self.cap) {
-            (None, _) => self.started = Some(std::time::Instant::now()),
-            (Some(t0), Some(cap)) if t0.elapsed().as_secs_f64() > cap => {
-                self.over_cap = true;
-                return Err(SceneError::Usage("over the budget's cost cap".into()));
-            }
-            _ => {}
-        }
+        self.cap.check()?;
         if self.masses.is_empty() {
             let tags = &f.regions.tags;
             let mut body_regions = vec![0u32; f.rigid.len()];
@@ -293,10 +312,8 @@ pub(crate) struct Recorder3 {
     pub trajectory: Trajectory<[f64; 3]>,
     /// The mesh, from the first frame (the rest state).
     pub layout: Layout<[u32; 4]>,
-    cap: Option<f64>,
-    started: Option<std::time::Instant>,
-    /// The run was stopped by the cap.
-    pub over_cap: bool,
+    /// Stops the run once it passed the budget's cost cap.
+    pub cap: CostCap,
 }
 
 impl Recorder3 {
@@ -304,23 +321,14 @@ impl Recorder3 {
         Recorder3 {
             trajectory: Trajectory::default(),
             layout: Layout::default(),
-            cap,
-            started: None,
-            over_cap: false,
+            cap: CostCap::new(cap),
         }
     }
 }
 
 impl fem_scene::solid::FrameSink3 for Recorder3 {
     fn frame(&mut self, f: &fem_scene::solid::FrameView3<'_>) -> Result<(), SceneError> {
-        match (self.started, self.cap) {
-            (None, _) => self.started = Some(std::time::Instant::now()),
-            (Some(t0), Some(cap)) if t0.elapsed().as_secs_f64() > cap => {
-                self.over_cap = true;
-                return Err(SceneError::Usage("over the budget's cost cap".into()));
-            }
-            _ => {}
-        }
+        self.cap.check()?;
         let points = |x: &[fem_core::dim::Vec3]| x.iter().map(|p| [p.x, p.y, p.z]).collect();
         if self.layout.cells.is_empty() {
             self.layout = Layout {

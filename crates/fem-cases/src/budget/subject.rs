@@ -188,7 +188,7 @@ impl Subject for LoadedScene {
                 };
                 run(&scene, &mut env)
             };
-            if rec.over_cap {
+            if rec.cap.over {
                 return Ok(Err(OverCap));
             }
             let s = result?.summary;
@@ -325,7 +325,7 @@ impl Subject for LoadedScene3 {
                     sinks: vec![&mut rec],
                 },
             );
-            if rec.over_cap {
+            if rec.cap.over {
                 return Ok(Err(OverCap));
             }
             let s = result?.summary;
